@@ -2,3 +2,6 @@
 //!
 //! Pure computation: no files, no printing, no global random number generator.
 #![warn(missing_docs)]
+
+pub mod framework;
+pub mod graph;

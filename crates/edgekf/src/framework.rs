@@ -1,0 +1,487 @@
+//! Frameworks: a nominal configuration, a sensing graph, Laplacian (stress) weights and leaders,
+//! checked once when built.
+//!
+//! A framework `(G, p)` with a generalized Laplacian `L = B diag(w) Bᵀ` (thesis eq. 3.4) drives the
+//! followers to an affine image of `p` when `L` is positive semidefinite with rank `N − D − 1` and
+//! `(L ⊗ I_D) p = 0` (thesis Theorems 3.1–3.2). [`Framework::new`] verifies exactly that, and that
+//! the `D + 1` leaders (thesis §3.5, Theorem 3.3) form a complete subgraph.
+//!
+//! The weight design problem itself (thesis SDP (3.5) and others) is a separate concern; here
+//! [`stress_from_simplices`] gives a correct construction for graphs built by attaching each new
+//! agent to a `D`-simplex of earlier, mutually linked agents: the sum of the rank-one stresses
+//! `ω ωᵀ` of the affine dependencies of those `D + 2` points.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::graph::{Graph, GraphError};
+
+/// Errors building a [`Framework`]; each names the offending quantity.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FrameworkError {
+    /// The graph is invalid.
+    #[error(transparent)]
+    Graph(#[from] GraphError),
+    /// Unsupported dimension.
+    #[error("dimension must be 1, 2 or 3, got {0}")]
+    Dimension(usize),
+    /// A configuration point has the wrong number of coordinates.
+    #[error("config[{agent}] has {got} coordinates, expected dim = {expected}")]
+    ConfigDimension {
+        /// Agent index.
+        agent: usize,
+        /// Expected D.
+        expected: usize,
+        /// Coordinates given.
+        got: usize,
+    },
+    /// A number is NaN or infinite.
+    #[error("{what} is not finite")]
+    NotFinite {
+        /// What was not finite.
+        what: String,
+    },
+    /// Wrong number of weights.
+    #[error("{got} weights given for {expected} links")]
+    WeightCount {
+        /// Number of links.
+        expected: usize,
+        /// Number of weights.
+        got: usize,
+    },
+    /// A link carries zero weight (it should then not be a link).
+    #[error("link ({i}, {j}) has zero weight")]
+    ZeroWeight {
+        /// First endpoint.
+        i: usize,
+        /// Second endpoint.
+        j: usize,
+    },
+    /// The configuration does not affinely span R^D.
+    #[error("the configuration is degenerate: its affine span has dimension {rank} < {dim}")]
+    Degenerate {
+        /// Dimension of the affine span.
+        rank: usize,
+        /// D.
+        dim: usize,
+    },
+    /// The Laplacian has a negative eigenvalue.
+    #[error("the Laplacian is not positive semidefinite: smallest eigenvalue {min_eig:.3e}")]
+    NotPsd {
+        /// Smallest eigenvalue.
+        min_eig: f64,
+    },
+    /// The Laplacian has the wrong rank.
+    #[error("the Laplacian has rank {rank}, but N − D − 1 = {expected} is needed (Theorem 3.2)")]
+    WrongRank {
+        /// Numerical rank.
+        rank: usize,
+        /// N − D − 1.
+        expected: usize,
+    },
+    /// The configuration is not an equilibrium: `(L ⊗ I) p ≠ 0`.
+    #[error("the configuration is not in the Laplacian's null space: max |(L ⊗ I) p| = {residual:.3e}")]
+    NotEquilibrium {
+        /// Largest residual entry.
+        residual: f64,
+    },
+    /// A leader index is out of range.
+    #[error("leader {leader} is not an agent (agents are 0..{n})")]
+    LeaderOutOfRange {
+        /// The leader.
+        leader: usize,
+        /// N.
+        n: usize,
+    },
+    /// Wrong number of leaders.
+    #[error("{got} leaders given; rigid formations need none or exactly D + 1 = {expected}")]
+    LeaderCount {
+        /// Number given.
+        got: usize,
+        /// D + 1.
+        expected: usize,
+    },
+    /// Leaders repeated.
+    #[error("leader {0} is listed twice")]
+    DuplicateLeader(usize),
+    /// Leaders are not mutually linked.
+    #[error("leaders {i} and {j} are not linked: the leaders must form a complete subgraph")]
+    LeadersNotComplete {
+        /// First leader.
+        i: usize,
+        /// Second leader.
+        j: usize,
+    },
+    /// A simplex for the stress construction is degenerate or not a clique.
+    #[error("stress construction: {0}")]
+    Construction(String),
+}
+
+/// A checked framework.
+#[derive(Debug, Clone)]
+pub struct Framework {
+    name: String,
+    dim: usize,
+    config: Vec<f64>,
+    graph: Graph,
+    weights: Vec<f64>,
+    leaders: Vec<usize>,
+    laplacian: DMatrix<f64>,
+    eigenvalues: Vec<f64>,
+}
+
+impl Framework {
+    /// Builds and checks a framework.
+    ///
+    /// `config` holds one point per agent; `links` the undirected links (any orientation; they
+    /// are sorted as in [`Graph::links`]) and `weights` one weight per entry of `links`, in the
+    /// order given.
+    ///
+    /// # Errors
+    /// [`FrameworkError`] naming the failed condition: graph, dimensions, finiteness, weights,
+    /// degenerate configuration, Laplacian not PSD, wrong rank, configuration not an equilibrium,
+    /// leaders.
+    pub fn new(
+        name: impl Into<String>,
+        dim: usize,
+        config: &[Vec<f64>],
+        links: &[(usize, usize)],
+        weights: &[f64],
+        leaders: &[usize],
+    ) -> Result<Self, FrameworkError> {
+        if !(1..=3).contains(&dim) {
+            return Err(FrameworkError::Dimension(dim));
+        }
+        let n = config.len();
+        let mut flat = Vec::with_capacity(n * dim);
+        for (agent, p) in config.iter().enumerate() {
+            if p.len() != dim {
+                return Err(FrameworkError::ConfigDimension { agent, expected: dim, got: p.len() });
+            }
+            if p.iter().any(|v| !v.is_finite()) {
+                return Err(FrameworkError::NotFinite { what: format!("config[{agent}]") });
+            }
+            flat.extend_from_slice(p);
+        }
+        let graph = Graph::new(n, links)?;
+        if weights.len() != links.len() {
+            return Err(FrameworkError::WeightCount { expected: links.len(), got: weights.len() });
+        }
+        let mut sorted_w = vec![0.0; links.len()];
+        for (&(i, j), &w) in links.iter().zip(weights) {
+            if !w.is_finite() {
+                return Err(FrameworkError::NotFinite { what: format!("weight of link ({i}, {j})") });
+            }
+            if w == 0.0 {
+                return Err(FrameworkError::ZeroWeight { i: i.min(j), j: i.max(j) });
+            }
+            let l = graph.links().binary_search(&(i.min(j), i.max(j))).expect("graph holds every link");
+            sorted_w[l] = w;
+        }
+        let span = affine_rank(&flat, n, dim);
+        if span < dim {
+            return Err(FrameworkError::Degenerate { rank: span, dim });
+        }
+        let laplacian = graph.laplacian(&sorted_w);
+        let eig = laplacian.clone().symmetric_eigen();
+        let mut eigenvalues: Vec<f64> = eig.eigenvalues.iter().copied().collect();
+        eigenvalues.sort_by(f64::total_cmp);
+        let scale = eigenvalues.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+        let tol = 1e-9 * scale * n as f64;
+        if eigenvalues[0] < -tol {
+            return Err(FrameworkError::NotPsd { min_eig: eigenvalues[0] });
+        }
+        let rank = eigenvalues.iter().filter(|&&v| v > tol).count();
+        let expected = n.saturating_sub(dim + 1);
+        if rank != expected {
+            return Err(FrameworkError::WrongRank { rank, expected });
+        }
+        let pmax = flat.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(1.0);
+        let mut residual = 0.0_f64;
+        for d in 0..dim {
+            let q = DVector::from_iterator(n, (0..n).map(|i| flat[i * dim + d]));
+            residual = residual.max((&laplacian * q).amax());
+        }
+        if residual > 1e-9 * scale * pmax * n as f64 {
+            return Err(FrameworkError::NotEquilibrium { residual });
+        }
+        check_leaders(&graph, dim, leaders)?;
+        Ok(Self {
+            name: name.into(),
+            dim,
+            config: flat,
+            graph,
+            weights: sorted_w,
+            leaders: leaders.to_vec(),
+            laplacian,
+            eigenvalues,
+        })
+    }
+
+    /// The thesis hexagon (thesis §3.6, Fig. 3.2; EUSIPCO Fig. 2a): N = 10 agents in 2-D,
+    /// 30 links (60 directed edges), a 2-trilateration graph whose first three agents form a
+    /// triangle and are the leaders.
+    ///
+    /// Coordinates (the papers print none; these are ours): leaders 0, 1, 2 on the unit circle at
+    /// 90°, 210°, 330°; agent 3 near the centre at (0.15, 0.1) (off-centre so that no three of the
+    /// points used in the weight construction are collinear); agents 4–9 on a hexagon of radius 2 at
+    /// 30°, 90°, 150°, 210°, 270°, 330°. Each agent k ≥ 3 links to 3–5 earlier agents. Weights
+    /// come from [`stress_from_simplices`], scaled so the smallest nonzero eigenvalue of `L` is 1.
+    pub fn hexagon() -> Self {
+        let s3 = 3f64.sqrt();
+        let config = vec![
+            vec![0.0, 1.0],
+            vec![-s3 / 2.0, -0.5],
+            vec![s3 / 2.0, -0.5],
+            vec![0.15, 0.1],
+            vec![s3, 1.0],
+            vec![0.0, 2.0],
+            vec![-s3, 1.0],
+            vec![-s3, -1.0],
+            vec![0.0, -2.0],
+            vec![s3, -1.0],
+        ];
+        let attach: &[(usize, &[usize])] = &[
+            (1, &[0]),
+            (2, &[0, 1]),
+            (3, &[0, 1, 2]),
+            (4, &[0, 2, 3]),
+            (5, &[0, 1, 3, 4]),
+            (6, &[0, 1, 3, 5]),
+            (7, &[1, 2, 3, 6]),
+            (8, &[1, 2, 3, 7]),
+            (9, &[0, 2, 3, 4, 8]),
+        ];
+        let links: Vec<(usize, usize)> =
+            attach.iter().flat_map(|&(k, nb)| nb.iter().map(move |&j| (j, k))).collect();
+        let simplices: &[(usize, [usize; 3])] = &[
+            (3, [0, 1, 2]),
+            (4, [0, 2, 3]),
+            (5, [0, 3, 4]),
+            (5, [0, 1, 3]),
+            (6, [0, 3, 5]),
+            (6, [0, 1, 3]),
+            (7, [1, 3, 6]),
+            (7, [1, 2, 3]),
+            (8, [1, 3, 7]),
+            (8, [1, 2, 3]),
+            (9, [2, 3, 4]),
+            (9, [2, 3, 8]),
+            (9, [0, 2, 4]),
+        ];
+        let simplices: Vec<(usize, Vec<usize>)> = simplices.iter().map(|(k, s)| (*k, s.to_vec())).collect();
+        let graph = Graph::new(config.len(), &links).expect("hexagon graph is valid");
+        let weights = stress_from_simplices(2, &config, &graph, &simplices).expect("hexagon simplices are valid");
+        Self::new("hexagon", 2, &config, graph.links(), &weights, &[0, 1, 2]).expect("hexagon framework is valid")
+    }
+
+    /// Name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Dimension D.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+    /// Number of agents N.
+    pub fn agents(&self) -> usize {
+        self.graph.agents()
+    }
+    /// Configuration, agent-major (`i * D + d`).
+    pub fn config(&self) -> &[f64] {
+        &self.config
+    }
+    /// Point of agent `i`.
+    pub fn point(&self, i: usize) -> &[f64] {
+        &self.config[i * self.dim..(i + 1) * self.dim]
+    }
+    /// The sensing graph.
+    pub fn graph(&self) -> &Graph {
+        &self.graph
+    }
+    /// One weight per undirected link, in [`Graph::links`] order.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+    /// `l_ij` per directed edge, in incidence order.
+    pub fn edge_weights(&self) -> Vec<f64> {
+        (0..self.graph.num_edges()).map(|e| self.weights[self.graph.link_of(e)]).collect()
+    }
+    /// Leaders (empty: a purely affine formation).
+    pub fn leaders(&self) -> &[usize] {
+        &self.leaders
+    }
+    /// The generalized Laplacian.
+    pub fn laplacian(&self) -> &DMatrix<f64> {
+        &self.laplacian
+    }
+    /// Eigenvalues of the Laplacian, ascending.
+    pub fn eigenvalues(&self) -> &[f64] {
+        &self.eigenvalues
+    }
+    /// Smallest nonzero eigenvalue of `L` (the `D + 2`-th smallest): the affine convergence rate.
+    pub fn stress_gap(&self) -> f64 {
+        self.eigenvalues[self.dim + 1]
+    }
+}
+
+fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), FrameworkError> {
+    let n = graph.agents();
+    if !(leaders.is_empty() || leaders.len() == dim + 1) {
+        return Err(FrameworkError::LeaderCount { got: leaders.len(), expected: dim + 1 });
+    }
+    for (k, &a) in leaders.iter().enumerate() {
+        if a >= n {
+            return Err(FrameworkError::LeaderOutOfRange { leader: a, n });
+        }
+        if leaders[..k].contains(&a) {
+            return Err(FrameworkError::DuplicateLeader(a));
+        }
+    }
+    for (k, &a) in leaders.iter().enumerate() {
+        for &b in &leaders[k + 1..] {
+            if !graph.has_link(a, b) {
+                return Err(FrameworkError::LeadersNotComplete { i: a.min(b), j: a.max(b) });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Dimension of the affine span of the points.
+fn affine_rank(flat: &[f64], n: usize, dim: usize) -> usize {
+    let mut m = DMatrix::zeros(n, dim);
+    for i in 0..n {
+        for d in 0..dim {
+            m[(i, d)] = flat[i * dim + d] - flat[d];
+        }
+    }
+    let sv = m.singular_values();
+    let smax = sv.max().max(f64::MIN_POSITIVE);
+    sv.iter().filter(|&&s| s > 1e-9 * smax).count()
+}
+
+/// Laplacian weights (one per link of `graph`, in [`Graph::links`] order) from the affine
+/// dependencies of `D + 2`-point cliques.
+///
+/// Each item `(k, S)` names an agent `k` and `D + 1` agents `S`, all mutually linked with `k` and
+/// with each other, in affinely general position. The affine dependency `ω` of the points
+/// `{p_k} ∪ {p_s : s ∈ S}` (`Σ ω = 0`, `Σ ω p = 0`, `ω_k = 1`) gives a rank-one PSD stress `ω ωᵀ`
+/// whose null space contains `1` and the configuration; the sum over all items is PSD with the
+/// configuration in its null space, and when every agent after the first `D + 1` is the `k` of
+/// some item its rank is `N − D − 1` (the `ω`'s are triangular in their newest agent). The result
+/// is scaled so the smallest nonzero eigenvalue is 1. [`Framework::new`] verifies all of it.
+///
+/// # Errors
+/// [`FrameworkError::Construction`] when an item is not a clique, is degenerate, or a link ends up
+/// with zero weight.
+pub fn stress_from_simplices(
+    dim: usize,
+    config: &[Vec<f64>],
+    graph: &Graph,
+    items: &[(usize, Vec<usize>)],
+) -> Result<Vec<f64>, FrameworkError> {
+    let n = graph.agents();
+    let mut l = DMatrix::<f64>::zeros(n, n);
+    for (k, s) in items {
+        if s.len() != dim + 1 {
+            return Err(FrameworkError::Construction(format!(
+                "agent {k}: {} simplex agents given, expected D + 1 = {}",
+                s.len(),
+                dim + 1
+            )));
+        }
+        let pts: Vec<usize> = std::iter::once(*k).chain(s.iter().copied()).collect();
+        for (a, &i) in pts.iter().enumerate() {
+            for &j in &pts[a + 1..] {
+                if !graph.has_link(i, j) {
+                    return Err(FrameworkError::Construction(format!(
+                        "agents {:?} must be mutually linked, but ({i}, {j}) is not a link",
+                        pts
+                    )));
+                }
+            }
+        }
+        // Solve [1 … 1; p_s …] ω_S = −[1; p_k].
+        let m = DMatrix::from_fn(dim + 1, dim + 1, |r, c| if r == 0 { 1.0 } else { config[s[c]][r - 1] });
+        let rhs = DVector::from_fn(dim + 1, |r, _| if r == 0 { -1.0 } else { -config[*k][r - 1] });
+        let omega_s = m.lu().solve(&rhs).ok_or_else(|| {
+            FrameworkError::Construction(format!("the simplex {s:?} of agent {k} is degenerate"))
+        })?;
+        let mut omega = vec![(*k, 1.0)];
+        omega.extend(s.iter().copied().zip(omega_s.iter().copied()));
+        for &(a, wa) in &omega {
+            for &(b, wb) in &omega {
+                l[(a, b)] += wa * wb;
+            }
+        }
+    }
+    let eig = l.clone().symmetric_eigen();
+    let mut ev: Vec<f64> = eig.eigenvalues.iter().copied().collect();
+    ev.sort_by(f64::total_cmp);
+    let gap = ev.get(dim + 1).copied().unwrap_or(0.0);
+    if gap <= 1e-9 * ev.last().copied().unwrap_or(0.0) {
+        return Err(FrameworkError::Construction(
+            "the simplices do not give rank N − D − 1: attach every agent after the first D + 1".into(),
+        ));
+    }
+    let scale = ev.last().copied().unwrap_or(1.0);
+    let mut weights = Vec::with_capacity(graph.links().len());
+    for &(i, j) in graph.links() {
+        let w = -l[(i, j)] / gap;
+        if w.abs() < 1e-9 * scale / gap {
+            return Err(FrameworkError::Construction(format!("link ({i}, {j}) receives zero weight")));
+        }
+        weights.push(w);
+    }
+    Ok(weights)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hexagon_is_the_thesis_framework() {
+        let f = Framework::hexagon();
+        assert_eq!(f.agents(), 10);
+        assert_eq!(f.graph().links().len(), 30);
+        assert_eq!(f.graph().num_edges(), 60);
+        assert_eq!(f.leaders(), &[0, 1, 2]);
+        // PSD, rank N − D − 1 = 7, and the configuration and 1 in the null space.
+        let ev = f.eigenvalues();
+        let scale = ev[9];
+        assert!(ev[0] > -1e-12 * scale);
+        assert_eq!(ev.iter().filter(|&&v| v > 1e-9 * scale).count(), 7);
+        assert!((f.stress_gap() - 1.0).abs() < 1e-9);
+        let l = f.laplacian();
+        let ones = DVector::from_element(10, 1.0);
+        assert!((l * ones).amax() < 1e-12 * scale);
+        for d in 0..2 {
+            let q = DVector::from_iterator(10, (0..10).map(|i| f.point(i)[d]));
+            assert!((l * q).amax() < 1e-10 * scale);
+        }
+        // 2-trilateration: agents after the first three have at least 3 earlier neighbours.
+        for k in 3..10 {
+            assert!(f.graph().neighbours(k).filter(|&j| j < k).count() >= 3);
+        }
+    }
+
+    #[test]
+    fn flexible_or_wrong_weights_are_rejected() {
+        let f = Framework::hexagon();
+        let cfg: Vec<Vec<f64>> = (0..10).map(|i| f.point(i).to_vec()).collect();
+        let mut w = f.weights().to_vec();
+        w[0] += 0.1;
+        let err = Framework::new("x", 2, &cfg, f.graph().links(), &w, &[0, 1, 2]).unwrap_err();
+        assert!(matches!(err, FrameworkError::NotEquilibrium { .. } | FrameworkError::WrongRank { .. } | FrameworkError::NotPsd { .. }), "{err}");
+        let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
+        let err = Framework::new("x", 2, &cfg, f.graph().links(), &neg, &[0, 1, 2]).unwrap_err();
+        assert!(matches!(err, FrameworkError::NotPsd { .. }), "{err}");
+        let err = Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 9]).unwrap_err();
+        assert_eq!(err.to_string(), "leaders 1 and 9 are not linked: the leaders must form a complete subgraph");
+        let err = Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 12]).unwrap_err();
+        assert!(matches!(err, FrameworkError::LeaderOutOfRange { leader: 12, .. }));
+        let err = Framework::new("x", 2, &cfg, f.graph().links(), &w[..29], &[]).unwrap_err();
+        assert!(matches!(err, FrameworkError::WeightCount { expected: 30, got: 29 }));
+    }
+}
