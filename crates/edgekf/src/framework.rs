@@ -6,10 +6,7 @@
 //! `(L ⊗ I_D) p = 0` (thesis Theorems 3.1–3.2). [`Framework::new`] verifies exactly that, and that
 //! the `D + 1` leaders (thesis §3.5, Theorem 3.3) form a complete subgraph.
 //!
-//! The weight design problem itself (thesis SDP (3.5) and others) is a separate concern; here
-//! [`stress_from_simplices`] gives a correct construction for graphs built by attaching each new
-//! agent to a `D`-simplex of earlier, mutually linked agents: the sum of the rank-one stresses
-//! `ω ωᵀ` of the affine dependencies of those `D + 2` points.
+//! The weight design problem itself (thesis SDP (3.5) and others) is a separate concern.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -79,7 +76,9 @@ pub enum FrameworkError {
         expected: usize,
     },
     /// The configuration is not an equilibrium: `(L ⊗ I) p ≠ 0`.
-    #[error("the configuration is not in the Laplacian's null space: max |(L ⊗ I) p| = {residual:.3e}")]
+    #[error(
+        "the configuration is not in the Laplacian's null space: max |(L ⊗ I) p| = {residual:.3e}"
+    )]
     NotEquilibrium {
         /// Largest residual entry.
         residual: f64,
@@ -111,10 +110,42 @@ pub enum FrameworkError {
         /// Second leader.
         j: usize,
     },
-    /// A simplex for the stress construction is degenerate or not a clique.
-    #[error("stress construction: {0}")]
-    Construction(String),
 }
+
+/// Hexagon weights per link in sorted link order (see [`Framework::hexagon`]).
+#[allow(clippy::excessive_precision)]
+const HEXAGON_WEIGHTS: [f64; 30] = [
+    6.868790779120246,
+    6.868790779327488,
+    12.23772544841831,
+    6.034294411056413,
+    13.559416231153289,
+    -3.6080463663082836,
+    -9.642340777468307,
+    6.868790779262154,
+    12.237725448494787,
+    -9.642340777589128,
+    6.03429441132903,
+    13.559416230890145,
+    -3.6080463663310516,
+    12.237725448351897,
+    -3.6080463663699076,
+    -9.642340777696052,
+    6.034294411358811,
+    13.559416230844272,
+    -3.615041139028913,
+    3.4778627508550084,
+    -3.6150411393082638,
+    3.4778627511175983,
+    -3.61504113932975,
+    3.477862750909701,
+    -0.6152300888425334,
+    4.205940299870623,
+    4.205940299952029,
+    -0.6152300888666229,
+    4.205940299981399,
+    -0.6152300888635317,
+];
 
 /// A checked framework.
 #[derive(Debug, Clone)]
@@ -155,26 +186,43 @@ impl Framework {
         let mut flat = Vec::with_capacity(n * dim);
         for (agent, p) in config.iter().enumerate() {
             if p.len() != dim {
-                return Err(FrameworkError::ConfigDimension { agent, expected: dim, got: p.len() });
+                return Err(FrameworkError::ConfigDimension {
+                    agent,
+                    expected: dim,
+                    got: p.len(),
+                });
             }
             if p.iter().any(|v| !v.is_finite()) {
-                return Err(FrameworkError::NotFinite { what: format!("config[{agent}]") });
+                return Err(FrameworkError::NotFinite {
+                    what: format!("config[{agent}]"),
+                });
             }
             flat.extend_from_slice(p);
         }
         let graph = Graph::new(n, links)?;
         if weights.len() != links.len() {
-            return Err(FrameworkError::WeightCount { expected: links.len(), got: weights.len() });
+            return Err(FrameworkError::WeightCount {
+                expected: links.len(),
+                got: weights.len(),
+            });
         }
         let mut sorted_w = vec![0.0; links.len()];
         for (&(i, j), &w) in links.iter().zip(weights) {
             if !w.is_finite() {
-                return Err(FrameworkError::NotFinite { what: format!("weight of link ({i}, {j})") });
+                return Err(FrameworkError::NotFinite {
+                    what: format!("weight of link ({i}, {j})"),
+                });
             }
             if w == 0.0 {
-                return Err(FrameworkError::ZeroWeight { i: i.min(j), j: i.max(j) });
+                return Err(FrameworkError::ZeroWeight {
+                    i: i.min(j),
+                    j: i.max(j),
+                });
             }
-            let l = graph.links().binary_search(&(i.min(j), i.max(j))).expect("graph holds every link");
+            let l = graph
+                .links()
+                .binary_search(&(i.min(j), i.max(j)))
+                .expect("graph holds every link");
             sorted_w[l] = w;
         }
         let span = affine_rank(&flat, n, dim);
@@ -185,10 +233,15 @@ impl Framework {
         let eig = laplacian.clone().symmetric_eigen();
         let mut eigenvalues: Vec<f64> = eig.eigenvalues.iter().copied().collect();
         eigenvalues.sort_by(f64::total_cmp);
-        let scale = eigenvalues.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+        let scale = eigenvalues
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
         let tol = 1e-9 * scale * n as f64;
         if eigenvalues[0] < -tol {
-            return Err(FrameworkError::NotPsd { min_eig: eigenvalues[0] });
+            return Err(FrameworkError::NotPsd {
+                min_eig: eigenvalues[0],
+            });
         }
         let rank = eigenvalues.iter().filter(|&&v| v > tol).count();
         let expected = n.saturating_sub(dim + 1);
@@ -222,17 +275,23 @@ impl Framework {
     /// triangle and are the leaders.
     ///
     /// Coordinates (the papers print none; these are ours): leaders 0, 1, 2 on the unit circle at
-    /// 90°, 210°, 330°; agent 3 near the centre at (0.15, 0.1) (off-centre so that no three of the
-    /// points used in the weight construction are collinear); agents 4–9 on a hexagon of radius 2 at
-    /// 30°, 90°, 150°, 210°, 270°, 330°. Each agent k ≥ 3 links to 3–5 earlier agents. Weights
-    /// come from [`stress_from_simplices`], scaled so the smallest nonzero eigenvalue of `L` is 1.
+    /// 90°, 210°, 330°; agent 3 at the centre; agents 4–9 on a hexagon of radius 2 at 30°, 90°,
+    /// 150°, 210°, 270°, 330°. Agent k ≥ 3 links to the earlier agents
+    /// 3: {0, 1, 2}; 4: {0, 2, 3}; 5: {0, 1, 3, 4}; 6: {0, 1, 3, 5}; 7: {1, 2, 3, 6};
+    /// 8: {1, 2, 3, 7}; 9: {0, 2, 3, 4, 8}.
+    ///
+    /// Weights: the best-conditioned stress, `min t` s.t. `I ⪯ Q L Qᵀ ⪯ t I` with
+    /// `L = B diag(w) Bᵀ` and `w` in the null space of the equilibrium map `L [P 1] = 0` (thesis
+    /// (3.5) with the smallest nonzero eigenvalue fixed at 1 and the largest minimised), solved
+    /// offline; the spectrum is {0 (×3), 1 (×3), 15.7, 51.6 (×3)}, so `Δt λ_max ≈ 0.05` at
+    /// Δt = 1 ms. [`Framework::new`] re-verifies PSD, rank 7 and the null space at build.
     pub fn hexagon() -> Self {
         let s3 = 3f64.sqrt();
         let config = vec![
             vec![0.0, 1.0],
             vec![-s3 / 2.0, -0.5],
             vec![s3 / 2.0, -0.5],
-            vec![0.15, 0.1],
+            vec![0.0, 0.0],
             vec![s3, 1.0],
             vec![0.0, 2.0],
             vec![-s3, 1.0],
@@ -251,27 +310,13 @@ impl Framework {
             (8, &[1, 2, 3, 7]),
             (9, &[0, 2, 3, 4, 8]),
         ];
-        let links: Vec<(usize, usize)> =
-            attach.iter().flat_map(|&(k, nb)| nb.iter().map(move |&j| (j, k))).collect();
-        let simplices: &[(usize, [usize; 3])] = &[
-            (3, [0, 1, 2]),
-            (4, [0, 2, 3]),
-            (5, [0, 3, 4]),
-            (5, [0, 1, 3]),
-            (6, [0, 3, 5]),
-            (6, [0, 1, 3]),
-            (7, [1, 3, 6]),
-            (7, [1, 2, 3]),
-            (8, [1, 3, 7]),
-            (8, [1, 2, 3]),
-            (9, [2, 3, 4]),
-            (9, [2, 3, 8]),
-            (9, [0, 2, 4]),
-        ];
-        let simplices: Vec<(usize, Vec<usize>)> = simplices.iter().map(|(k, s)| (*k, s.to_vec())).collect();
-        let graph = Graph::new(config.len(), &links).expect("hexagon graph is valid");
-        let weights = stress_from_simplices(2, &config, &graph, &simplices).expect("hexagon simplices are valid");
-        Self::new("hexagon", 2, &config, graph.links(), &weights, &[0, 1, 2]).expect("hexagon framework is valid")
+        let mut links: Vec<(usize, usize)> = attach
+            .iter()
+            .flat_map(|&(k, nb)| nb.iter().map(move |&j| (j, k)))
+            .collect();
+        links.sort_unstable();
+        Self::new("hexagon", 2, &config, &links, &HEXAGON_WEIGHTS, &[0, 1, 2])
+            .expect("hexagon framework is valid")
     }
 
     /// Name.
@@ -304,7 +349,9 @@ impl Framework {
     }
     /// `l_ij` per directed edge, in incidence order.
     pub fn edge_weights(&self) -> Vec<f64> {
-        (0..self.graph.num_edges()).map(|e| self.weights[self.graph.link_of(e)]).collect()
+        (0..self.graph.num_edges())
+            .map(|e| self.weights[self.graph.link_of(e)])
+            .collect()
     }
     /// Leaders (empty: a purely affine formation).
     pub fn leaders(&self) -> &[usize] {
@@ -327,7 +374,10 @@ impl Framework {
 fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), FrameworkError> {
     let n = graph.agents();
     if !(leaders.is_empty() || leaders.len() == dim + 1) {
-        return Err(FrameworkError::LeaderCount { got: leaders.len(), expected: dim + 1 });
+        return Err(FrameworkError::LeaderCount {
+            got: leaders.len(),
+            expected: dim + 1,
+        });
     }
     for (k, &a) in leaders.iter().enumerate() {
         if a >= n {
@@ -340,7 +390,10 @@ fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), Fra
     for (k, &a) in leaders.iter().enumerate() {
         for &b in &leaders[k + 1..] {
             if !graph.has_link(a, b) {
-                return Err(FrameworkError::LeadersNotComplete { i: a.min(b), j: a.max(b) });
+                return Err(FrameworkError::LeadersNotComplete {
+                    i: a.min(b),
+                    j: a.max(b),
+                });
             }
         }
     }
@@ -360,82 +413,6 @@ fn affine_rank(flat: &[f64], n: usize, dim: usize) -> usize {
     sv.iter().filter(|&&s| s > 1e-9 * smax).count()
 }
 
-/// Laplacian weights (one per link of `graph`, in [`Graph::links`] order) from the affine
-/// dependencies of `D + 2`-point cliques.
-///
-/// Each item `(k, S)` names an agent `k` and `D + 1` agents `S`, all mutually linked with `k` and
-/// with each other, in affinely general position. The affine dependency `ω` of the points
-/// `{p_k} ∪ {p_s : s ∈ S}` (`Σ ω = 0`, `Σ ω p = 0`, `ω_k = 1`) gives a rank-one PSD stress `ω ωᵀ`
-/// whose null space contains `1` and the configuration; the sum over all items is PSD with the
-/// configuration in its null space, and when every agent after the first `D + 1` is the `k` of
-/// some item its rank is `N − D − 1` (the `ω`'s are triangular in their newest agent). The result
-/// is scaled so the smallest nonzero eigenvalue is 1. [`Framework::new`] verifies all of it.
-///
-/// # Errors
-/// [`FrameworkError::Construction`] when an item is not a clique, is degenerate, or a link ends up
-/// with zero weight.
-pub fn stress_from_simplices(
-    dim: usize,
-    config: &[Vec<f64>],
-    graph: &Graph,
-    items: &[(usize, Vec<usize>)],
-) -> Result<Vec<f64>, FrameworkError> {
-    let n = graph.agents();
-    let mut l = DMatrix::<f64>::zeros(n, n);
-    for (k, s) in items {
-        if s.len() != dim + 1 {
-            return Err(FrameworkError::Construction(format!(
-                "agent {k}: {} simplex agents given, expected D + 1 = {}",
-                s.len(),
-                dim + 1
-            )));
-        }
-        let pts: Vec<usize> = std::iter::once(*k).chain(s.iter().copied()).collect();
-        for (a, &i) in pts.iter().enumerate() {
-            for &j in &pts[a + 1..] {
-                if !graph.has_link(i, j) {
-                    return Err(FrameworkError::Construction(format!(
-                        "agents {:?} must be mutually linked, but ({i}, {j}) is not a link",
-                        pts
-                    )));
-                }
-            }
-        }
-        // Solve [1 … 1; p_s …] ω_S = −[1; p_k].
-        let m = DMatrix::from_fn(dim + 1, dim + 1, |r, c| if r == 0 { 1.0 } else { config[s[c]][r - 1] });
-        let rhs = DVector::from_fn(dim + 1, |r, _| if r == 0 { -1.0 } else { -config[*k][r - 1] });
-        let omega_s = m.lu().solve(&rhs).ok_or_else(|| {
-            FrameworkError::Construction(format!("the simplex {s:?} of agent {k} is degenerate"))
-        })?;
-        let mut omega = vec![(*k, 1.0)];
-        omega.extend(s.iter().copied().zip(omega_s.iter().copied()));
-        for &(a, wa) in &omega {
-            for &(b, wb) in &omega {
-                l[(a, b)] += wa * wb;
-            }
-        }
-    }
-    let eig = l.clone().symmetric_eigen();
-    let mut ev: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-    ev.sort_by(f64::total_cmp);
-    let gap = ev.get(dim + 1).copied().unwrap_or(0.0);
-    if gap <= 1e-9 * ev.last().copied().unwrap_or(0.0) {
-        return Err(FrameworkError::Construction(
-            "the simplices do not give rank N − D − 1: attach every agent after the first D + 1".into(),
-        ));
-    }
-    let scale = ev.last().copied().unwrap_or(1.0);
-    let mut weights = Vec::with_capacity(graph.links().len());
-    for &(i, j) in graph.links() {
-        let w = -l[(i, j)] / gap;
-        if w.abs() < 1e-9 * scale / gap {
-            return Err(FrameworkError::Construction(format!("link ({i}, {j}) receives zero weight")));
-        }
-        weights.push(w);
-    }
-    Ok(weights)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -452,7 +429,9 @@ mod tests {
         let scale = ev[9];
         assert!(ev[0] > -1e-12 * scale);
         assert_eq!(ev.iter().filter(|&&v| v > 1e-9 * scale).count(), 7);
-        assert!((f.stress_gap() - 1.0).abs() < 1e-9);
+        // Designed spectrum: nonzero eigenvalues in [1, 51.6].
+        assert!((f.stress_gap() - 1.0).abs() < 1e-6);
+        assert!(scale < 52.0);
         let l = f.laplacian();
         let ones = DVector::from_element(10, 1.0);
         assert!((l * ones).amax() < 1e-12 * scale);
@@ -473,15 +452,37 @@ mod tests {
         let mut w = f.weights().to_vec();
         w[0] += 0.1;
         let err = Framework::new("x", 2, &cfg, f.graph().links(), &w, &[0, 1, 2]).unwrap_err();
-        assert!(matches!(err, FrameworkError::NotEquilibrium { .. } | FrameworkError::WrongRank { .. } | FrameworkError::NotPsd { .. }), "{err}");
+        assert!(
+            matches!(
+                err,
+                FrameworkError::NotEquilibrium { .. }
+                    | FrameworkError::WrongRank { .. }
+                    | FrameworkError::NotPsd { .. }
+            ),
+            "{err}"
+        );
         let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
         let err = Framework::new("x", 2, &cfg, f.graph().links(), &neg, &[0, 1, 2]).unwrap_err();
         assert!(matches!(err, FrameworkError::NotPsd { .. }), "{err}");
-        let err = Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 9]).unwrap_err();
-        assert_eq!(err.to_string(), "leaders 1 and 9 are not linked: the leaders must form a complete subgraph");
-        let err = Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 12]).unwrap_err();
-        assert!(matches!(err, FrameworkError::LeaderOutOfRange { leader: 12, .. }));
+        let err =
+            Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 9]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "leaders 1 and 9 are not linked: the leaders must form a complete subgraph"
+        );
+        let err =
+            Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 12]).unwrap_err();
+        assert!(matches!(
+            err,
+            FrameworkError::LeaderOutOfRange { leader: 12, .. }
+        ));
         let err = Framework::new("x", 2, &cfg, f.graph().links(), &w[..29], &[]).unwrap_err();
-        assert!(matches!(err, FrameworkError::WeightCount { expected: 30, got: 29 }));
+        assert!(matches!(
+            err,
+            FrameworkError::WeightCount {
+                expected: 30,
+                got: 29
+            }
+        ));
     }
 }

@@ -91,7 +91,13 @@ impl Graph {
         for (index, &(i, j)) in links.iter().enumerate() {
             for bad in [i, j] {
                 if bad >= n {
-                    return Err(GraphError::AgentOutOfRange { index, i, j, bad, n });
+                    return Err(GraphError::AgentOutOfRange {
+                        index,
+                        i,
+                        j,
+                        bad,
+                        n,
+                    });
                 }
             }
             if i == j {
@@ -102,18 +108,30 @@ impl Graph {
         sorted.sort_unstable();
         for w in sorted.windows(2) {
             if w[0] == w[1] {
-                return Err(GraphError::DuplicateLink { i: w[0].0, j: w[0].1 });
+                return Err(GraphError::DuplicateLink {
+                    i: w[0].0,
+                    j: w[0].1,
+                });
             }
         }
-        let mut edges: Vec<(usize, usize)> = sorted.iter().flat_map(|&(i, j)| [(i, j), (j, i)]).collect();
+        let mut edges: Vec<(usize, usize)> =
+            sorted.iter().flat_map(|&(i, j)| [(i, j), (j, i)]).collect();
         edges.sort_unstable();
         let edge_link = edges
             .iter()
-            .map(|&(i, j)| sorted.binary_search(&(i.min(j), i.max(j))).expect("edge comes from a link"))
+            .map(|&(i, j)| {
+                sorted
+                    .binary_search(&(i.min(j), i.max(j)))
+                    .expect("edge comes from a link")
+            })
             .collect();
         let reverse = edges
             .iter()
-            .map(|&(i, j)| edges.binary_search(&(j, i)).expect("both orientations present"))
+            .map(|&(i, j)| {
+                edges
+                    .binary_search(&(j, i))
+                    .expect("both orientations present")
+            })
             .collect();
         let mut agent_edges = Vec::with_capacity(n);
         let mut start = 0;
@@ -122,7 +140,14 @@ impl Graph {
             agent_edges.push(start..end);
             start = end;
         }
-        let g = Self { n, links: sorted, edges, edge_link, reverse, agent_edges };
+        let g = Self {
+            n,
+            links: sorted,
+            edges,
+            edge_link,
+            reverse,
+            agent_edges,
+        };
         if let Some(unreached) = g.first_unreached() {
             return Err(GraphError::Disconnected { unreached });
         }
@@ -134,7 +159,9 @@ impl Graph {
     /// # Errors
     /// [`GraphError::TooFewAgents`] for `n < 2`.
     pub fn complete(n: usize) -> Result<Self, GraphError> {
-        let links: Vec<_> = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect();
+        let links: Vec<_> = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .collect();
         Self::new(n, &links)
     }
 
@@ -249,7 +276,19 @@ mod tests {
     fn incidence_columns_sum_to_zero_and_order_is_contract() {
         let g = Graph::new(4, &[(2, 0), (0, 1), (1, 2), (3, 1)]).unwrap();
         assert_eq!(g.links(), &[(0, 1), (0, 2), (1, 2), (1, 3)]);
-        assert_eq!(g.edges(), &[(0, 1), (0, 2), (1, 0), (1, 2), (1, 3), (2, 0), (2, 1), (3, 1)]);
+        assert_eq!(
+            g.edges(),
+            &[
+                (0, 1),
+                (0, 2),
+                (1, 0),
+                (1, 2),
+                (1, 3),
+                (2, 0),
+                (2, 1),
+                (3, 1)
+            ]
+        );
         let b = g.incidence();
         for e in 0..g.num_edges() {
             assert_eq!(b.column(e).sum(), 0.0);
@@ -283,8 +322,17 @@ mod tests {
             Graph::new(3, &[(0, 1), (1, 0)]).unwrap_err().to_string(),
             "link (0, 1) appears more than once"
         );
-        assert!(matches!(Graph::new(3, &[(0, 1)]), Err(GraphError::Disconnected { unreached: 2 })));
-        assert!(matches!(Graph::new(3, &[(0, 3)]), Err(GraphError::AgentOutOfRange { bad: 3, .. })));
-        assert!(matches!(Graph::new(3, &[(1, 1)]), Err(GraphError::SelfLoop { i: 1, .. })));
+        assert!(matches!(
+            Graph::new(3, &[(0, 1)]),
+            Err(GraphError::Disconnected { unreached: 2 })
+        ));
+        assert!(matches!(
+            Graph::new(3, &[(0, 3)]),
+            Err(GraphError::AgentOutOfRange { bad: 3, .. })
+        ));
+        assert!(matches!(
+            Graph::new(3, &[(1, 1)]),
+            Err(GraphError::SelfLoop { i: 1, .. })
+        ));
     }
 }
