@@ -3,5 +3,12 @@
 //! Pure computation: no files, no printing, no global random number generator.
 #![warn(missing_docs)]
 
+pub mod control;
+pub mod estimate;
 pub mod framework;
 pub mod graph;
+pub mod linalg;
+pub mod metrics;
+pub mod noise;
+pub mod scenario;
+pub mod sim;

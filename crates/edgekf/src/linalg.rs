@@ -1,0 +1,169 @@
+//! Small dense linear algebra that works in place on preallocated storage, so that the step loop
+//! allocates nothing, plus the lockstep "one gain, many runs" products.
+//!
+//! Batched arrays hold one row per state component and one column per Monte Carlo run, stored
+//! row-major with the runs innermost and contiguous (`row * runs + r`): a gain computed once per
+//! step is applied to every run with unit-stride inner loops the compiler vectorises.
+
+use nalgebra::DMatrix;
+
+/// Solves `A X = B` in place (`b` becomes `X`) for symmetric positive definite `a`, factorising
+/// `a` in place (it holds the Cholesky factor afterwards). No allocation: the matrix is moved into
+/// nalgebra's factorisation and back. Returns `false` (leaving `a` zero-sized contents unchanged
+/// in shape) if `a` is not positive definite.
+pub fn spd_solve_in_place(a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) -> bool {
+    let (r, c) = a.shape();
+    let m = std::mem::replace(a, DMatrix::zeros(0, 0));
+    match nalgebra::Cholesky::new(m) {
+        Some(chol) => {
+            chol.solve_mut(b);
+            *a = chol.unpack();
+            true
+        }
+        None => {
+            *a = DMatrix::zeros(r, c);
+            false
+        }
+    }
+}
+
+/// Inverts the symmetric positive definite `a` into `out`, using `work` (same size) for the
+/// factor. Returns `false` if `a` is not positive definite.
+pub fn invert_spd(a: &DMatrix<f64>, work: &mut DMatrix<f64>, out: &mut DMatrix<f64>) -> bool {
+    work.copy_from(a);
+    out.fill(0.0);
+    out.fill_diagonal(1.0);
+    if !spd_solve_in_place(work, out) {
+        return false;
+    }
+    symmetrize(out);
+    true
+}
+
+/// Whether `new` differs from `old` by at most `8 ε max|old|` in every entry: a covariance
+/// recursion that has converged to rounding level (further steps only add rounding noise).
+pub fn converged(new: &DMatrix<f64>, old: &DMatrix<f64>) -> bool {
+    let tol = 8.0 * f64::EPSILON * old.amax();
+    new.iter()
+        .zip(old.iter())
+        .all(|(x, y)| (x - y).abs() <= tol)
+}
+
+/// Replaces `a` by `(a + aᵀ) / 2`.
+pub fn symmetrize(a: &mut DMatrix<f64>) {
+    let n = a.nrows();
+    for i in 0..n {
+        for j in i + 1..n {
+            let m = 0.5 * (a[(i, j)] + a[(j, i)]);
+            a[(i, j)] = m;
+            a[(j, i)] = m;
+        }
+    }
+}
+
+/// A symmetric PSD square root factor `C` with `C Cᵀ = a`: the Cholesky factor when `a` is
+/// positive definite, otherwise `V Λ^{1/2}` from the eigendecomposition. `None` if `a` has an
+/// eigenvalue below `−tol · max|λ|` (not PSD) or is not symmetric.
+pub fn psd_factor(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = a.nrows();
+    if a.ncols() != n || a.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let scale = a.amax().max(f64::MIN_POSITIVE);
+    for i in 0..n {
+        for j in 0..i {
+            if (a[(i, j)] - a[(j, i)]).abs() > 1e-12 * scale {
+                return None;
+            }
+        }
+    }
+    if a.iter().all(|&v| v == 0.0) {
+        return Some(DMatrix::zeros(n, n));
+    }
+    if let Some(c) = a.clone().cholesky() {
+        return Some(c.unpack());
+    }
+    let eig = a.clone().symmetric_eigen();
+    let lmax = eig.eigenvalues.amax();
+    if eig.eigenvalues.iter().any(|&v| v < -1e-10 * lmax) {
+        return None;
+    }
+    let mut f = eig.eigenvectors.clone();
+    for (j, &v) in eig.eigenvalues.iter().enumerate() {
+        let s = v.max(0.0).sqrt();
+        f.column_mut(j).scale_mut(s);
+    }
+    Some(f)
+}
+
+/// `x[a] += Σ_b k[a, b] · v[b]` for every run: one gain (`n × n`, row-major slice) applied to a
+/// batch of `n` rows by `runs` columns.
+#[inline]
+pub fn batch_gemv_acc(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize) {
+    debug_assert_eq!(k.len(), n * n);
+    debug_assert!(v.len() >= n * runs && x.len() >= n * runs);
+    for a in 0..n {
+        let xa = &mut x[a * runs..(a + 1) * runs];
+        for b in 0..n {
+            let kab = k[a * n + b];
+            if kab == 0.0 {
+                continue;
+            }
+            let vb = &v[b * runs..(b + 1) * runs];
+            for (xr, vr) in xa.iter_mut().zip(vb) {
+                *xr += kab * vr;
+            }
+        }
+    }
+}
+
+/// `x[a] = Σ_b m[a, b] · v[b]` for every run, with `m` a dense `rows × cols` row-major matrix.
+#[inline]
+pub fn batch_gemv(m: &[f64], rows: usize, cols: usize, v: &[f64], x: &mut [f64], runs: usize) {
+    x[..rows * runs].fill(0.0);
+    for a in 0..rows {
+        let xa = &mut x[a * runs..(a + 1) * runs];
+        for b in 0..cols {
+            let mab = m[a * cols + b];
+            if mab == 0.0 {
+                continue;
+            }
+            let vb = &v[b * runs..(b + 1) * runs];
+            for (xr, vr) in xa.iter_mut().zip(vb) {
+                *xr += mab * vr;
+            }
+        }
+    }
+}
+
+/// Copies a dense matrix into a row-major slice.
+pub fn to_row_major(m: &DMatrix<f64>, out: &mut [f64]) {
+    let c = m.ncols();
+    for i in 0..m.nrows() {
+        for j in 0..c {
+            out[i * c + j] = m[(i, j)];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_inverse_roundtrip() {
+        let a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let mut w = a.clone();
+        let mut inv = a.clone();
+        assert!(invert_spd(&a, &mut w, &mut inv));
+        let id = &a * &inv;
+        assert!((id - DMatrix::identity(3, 3)).amax() < 1e-14);
+        let f = psd_factor(&a).unwrap();
+        assert!((&f * f.transpose() - &a).amax() < 1e-14);
+        // A singular PSD matrix still has a factor; an indefinite one has none.
+        let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        let f = psd_factor(&s).unwrap();
+        assert!((&f * f.transpose() - &s).amax() < 1e-14);
+        assert!(psd_factor(&DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0])).is_none());
+    }
+}
