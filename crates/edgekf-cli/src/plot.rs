@@ -19,3 +19,324 @@ pub fn register_fonts() {
         }
     });
 }
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+use edgekf::scenario::{PlotSpec, Scenario};
+use edgekf::sim::Results;
+use plotters::prelude::*;
+
+const PALETTE: [RGBColor; 8] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
+    RGBColor(120, 120, 120),
+    RGBColor(0, 0, 0),
+];
+
+fn colour(k: usize) -> RGBColor {
+    PALETTE[k % PALETTE.len()]
+}
+
+/// Axis label (with units) of a metric.
+pub fn metric_label(metric: &str) -> &'static str {
+    match metric {
+        "est_error" => "estimation error ε_k = ‖x_k − x̂_k|k‖ [m]",
+        "est_error_sq" => "squared estimation error ε_k² [m²]",
+        "cov_trace" => "trace of posterior covariance [m²]",
+        "procrustes" => "Procrustes error [m]",
+        _ => "value",
+    }
+}
+
+fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow!("plotting failed: {e:?}")
+}
+
+/// Renders one figure request into `dir/<file>.png` (temporary file, then rename).
+pub fn render(dir: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Result<()> {
+    register_fonts();
+    let tmp = dir.join(format!(".{}.tmp.png", spec.file));
+    let labels: Vec<String> = spec
+        .estimators
+        .clone()
+        .unwrap_or_else(|| res.labels.clone());
+    match spec.kind.as_str() {
+        "metric" => metric_plot(&tmp, spec, res, &labels)?,
+        _ => paths_plot(&tmp, spec, sc, res, &labels)?,
+    }
+    std::fs::rename(&tmp, dir.join(format!("{}.png", spec.file)))
+        .with_context(|| format!("cannot move {} into place", tmp.display()))
+}
+
+fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -> Result<()> {
+    let metric = spec.metric.as_deref().unwrap_or("est_error");
+    let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
+    let tmax = *t.last().unwrap_or(&1.0);
+    let mut series = Vec::new();
+    for l in labels {
+        let s = res
+            .series(l, metric)
+            .ok_or_else(|| anyhow!("no series `{l}`/{metric}"))?;
+        series.push((l.clone(), s));
+    }
+    // y range over the bands (positive part on a log axis).
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (_, s) in &series {
+        for (m, sd) in s.mean.iter().zip(&s.std) {
+            let sd = if sd.is_finite() { *sd } else { 0.0 };
+            let (a, b) = (m - sd, m + sd);
+            hi = hi.max(b);
+            if spec.log_y {
+                if *m > 0.0 {
+                    lo = lo.min(if a > 0.0 { a } else { *m });
+                }
+            } else {
+                lo = lo.min(a);
+            }
+        }
+    }
+    if !lo.is_finite() || !hi.is_finite() {
+        lo = 1e-6;
+        hi = 1.0;
+    }
+    let root = BitMapBackend::new(path, (1100, 720)).into_drawing_area();
+    root.fill(&WHITE).map_err(draw_err)?;
+    let title = if spec.title.is_empty() {
+        metric.to_string()
+    } else {
+        spec.title.clone()
+    };
+    let n = res.runs;
+    let caption = format!(
+        "{title}  (mean ± 1σ over {n} run{})",
+        if n == 1 { "" } else { "s" }
+    );
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(caption, ("sans-serif", 24))
+        .margin(16)
+        .x_label_area_size(56)
+        .y_label_area_size(96);
+    if spec.log_y {
+        let (lo, hi) = (lo * 0.8, hi * 1.25);
+        let mut chart = builder
+            .build_cartesian_2d(0.0..tmax, (lo..hi).log_scale())
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc(metric_label(metric))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .draw()
+            .map_err(draw_err)?;
+        for (k, (l, s)) in series.iter().enumerate() {
+            let c = colour(k);
+            let band: Vec<(f64, f64)> = t
+                .iter()
+                .zip(s.mean.iter().zip(&s.std))
+                .map(|(&x, (m, sd))| (x, (m + sd.max(0.0)).max(lo)))
+                .chain(
+                    t.iter()
+                        .zip(s.mean.iter().zip(&s.std))
+                        .rev()
+                        .map(|(&x, (m, sd))| {
+                            let v = m - if sd.is_finite() { *sd } else { 0.0 };
+                            (x, if v > lo { v } else { lo })
+                        }),
+                )
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
+                .map_err(draw_err)?;
+            chart
+                .draw_series(LineSeries::new(
+                    t.iter().zip(&s.mean).map(|(&x, &m)| (x, m.max(lo))),
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?
+                .label(l.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(draw_err)?;
+    } else {
+        let pad = 0.05 * (hi - lo).max(1e-12);
+        let mut chart = builder
+            .build_cartesian_2d(0.0..tmax, (lo - pad)..(hi + pad))
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc(metric_label(metric))
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .draw()
+            .map_err(draw_err)?;
+        for (k, (l, s)) in series.iter().enumerate() {
+            let c = colour(k);
+            let sd = |v: &f64| if v.is_finite() { *v } else { 0.0 };
+            let band: Vec<(f64, f64)> = t
+                .iter()
+                .zip(s.mean.iter().zip(&s.std))
+                .map(|(&x, (m, v))| (x, m + sd(v)))
+                .chain(
+                    t.iter()
+                        .zip(s.mean.iter().zip(&s.std))
+                        .rev()
+                        .map(|(&x, (m, v))| (x, m - sd(v))),
+                )
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
+                .map_err(draw_err)?;
+            chart
+                .draw_series(LineSeries::new(
+                    t.iter().zip(&s.mean).map(|(&x, &m)| (x, m)),
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?
+                .label(l.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(draw_err)?;
+    }
+    root.present().map_err(draw_err)?;
+    Ok(())
+}
+
+fn paths_plot(
+    path: &Path,
+    spec: &PlotSpec,
+    sc: &Scenario,
+    res: &Results,
+    labels: &[String],
+) -> Result<()> {
+    let fw = &sc.framework;
+    let (n, d) = (fw.agents(), fw.dim());
+    let nr = res.steps.len();
+    let panels = labels.len().max(1);
+    let cols = panels.min(2);
+    let rows = panels.div_ceil(cols);
+    let root =
+        BitMapBackend::new(path, (620 * cols as u32, 600 * rows as u32 + 50)).into_drawing_area();
+    root.fill(&WHITE).map_err(draw_err)?;
+    let title = if spec.title.is_empty() {
+        "agent paths".to_string()
+    } else {
+        spec.title.clone()
+    };
+    let root = root
+        .titled(
+            &format!(
+                "{title}  (run {}, 0–{:.0} s; ○ start, ▲ end, red ▲ leaders, grey: final links)",
+                sc.paths_run,
+                res.steps.last().copied().unwrap_or(0) as f64 * res.dt
+            ),
+            ("sans-serif", 22),
+        )
+        .map_err(draw_err)?;
+    let areas = root.split_evenly((rows, cols));
+    for (area, label) in areas.iter().zip(labels) {
+        let e = res
+            .labels
+            .iter()
+            .position(|l| l == label)
+            .ok_or_else(|| anyhow!("no estimator `{label}`"))?;
+        let p = &res.paths[e];
+        let at = |k: usize, i: usize, c: usize| p[k * n * d + i * d + c];
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for k in 0..nr {
+            for i in 0..n {
+                x0 = x0.min(at(k, i, 0));
+                x1 = x1.max(at(k, i, 0));
+                let y = if d > 1 { at(k, i, 1) } else { 0.0 };
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+        }
+        // Equal aspect ratio.
+        let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+        let half = 0.55 * (x1 - x0).max(y1 - y0).max(1e-9);
+        let mut chart = ChartBuilder::on(area)
+            .caption(label.as_str(), ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(56)
+            .build_cartesian_2d((cx - half)..(cx + half), (cy - half)..(cy + half))
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("x [m]")
+            .y_desc("y [m]")
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(draw_err)?;
+        let y = |k: usize, i: usize| if d > 1 { at(k, i, 1) } else { 0.0 };
+        let last = nr - 1;
+        for &(i, j) in fw.graph().links() {
+            chart
+                .draw_series(LineSeries::new(
+                    vec![(at(last, i, 0), y(last, i)), (at(last, j, 0), y(last, j))],
+                    BLACK.mix(0.35),
+                ))
+                .map_err(draw_err)?;
+        }
+        for i in 0..n {
+            let c = colour(i);
+            chart
+                .draw_series(LineSeries::new(
+                    (0..nr).map(|k| (at(k, i, 0), y(k, i))),
+                    c.stroke_width(1),
+                ))
+                .map_err(draw_err)?;
+            chart
+                .draw_series(std::iter::once(Circle::new(
+                    (at(0, i, 0), y(0, i)),
+                    4,
+                    c.stroke_width(2),
+                )))
+                .map_err(draw_err)?;
+            let leader = fw.leaders().contains(&i);
+            let style = if leader { RED.filled() } else { c.filled() };
+            chart
+                .draw_series(std::iter::once(TriangleMarker::new(
+                    (at(last, i, 0), y(last, i)),
+                    7,
+                    style,
+                )))
+                .map_err(draw_err)?;
+        }
+    }
+    root.present().map_err(draw_err)?;
+    Ok(())
+}

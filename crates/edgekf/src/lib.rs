@@ -2,6 +2,8 @@
 //!
 //! Pure computation: no files, no printing, no global random number generator.
 #![warn(missing_docs)]
+// Index loops mirror the equations (agents, edges, dimensions) more clearly than iterator chains.
+#![allow(clippy::needless_range_loop)]
 
 pub mod control;
 pub mod estimate;

@@ -91,25 +91,26 @@ impl EstimatorKind {
     /// # Errors
     /// A message for unknown names or a missing/invalid MMSE prior.
     pub fn parse(name: &str, prior_var: Option<f64>) -> Result<Self, String> {
-        let k =
-            match name {
-                "none" => Self::None,
-                "mle" => Self::Mle,
-                "mmse" => {
-                    let v = prior_var.ok_or("mmse needs `prior_var` (σ²_prior)")?;
-                    if !(v.is_finite() && v > 0.0) {
-                        return Err(format!("prior_var must be > 0, got {v}"));
-                    }
-                    Self::Mmse { prior_var: v }
+        let k = match name {
+            "none" => Self::None,
+            "mle" => Self::Mle,
+            "mmse" => {
+                let v = prior_var.ok_or("mmse needs `prior_var` (σ²_prior)")?;
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(format!("prior_var must be > 0, got {v}"));
                 }
-                "rkf" => Self::Rkf,
-                "jrkf" => Self::Jrkf,
-                "crkf" => Self::Crkf,
-                "oracle" => Self::Oracle,
-                other => return Err(format!(
+                Self::Mmse { prior_var: v }
+            }
+            "rkf" => Self::Rkf,
+            "jrkf" => Self::Jrkf,
+            "crkf" => Self::Crkf,
+            "oracle" => Self::Oracle,
+            other => {
+                return Err(format!(
                     "unknown estimator `{other}` (known: none, mle, mmse, rkf, jrkf, crkf, oracle)"
-                )),
-            };
+                ))
+            }
+        };
         if prior_var.is_some() && !matches!(k, Self::Mmse { .. }) {
             return Err(format!("`prior_var` applies to mmse only, not {name}"));
         }

@@ -1,0 +1,130 @@
+//! The shipped scenarios and the paper figures they reproduce.
+//!
+//! Several figures come from one simulation (e.g. thesis Figs 4.9–4.11); `reproduce` runs each
+//! scenario file once and draws every requested figure from it.
+
+/// One reproducible figure.
+pub struct Entry {
+    /// Reproduction name (`<source>-fig<number>`).
+    pub name: &'static str,
+    /// What it shows.
+    pub description: &'static str,
+    /// Scenario file name under `scenarios/`.
+    pub file: &'static str,
+    /// The scenario text (embedded at build time, so `reproduce` works from any directory).
+    pub text: &'static str,
+    /// Plot file stems of this figure (empty for non-filter studies, which draw their own).
+    pub plots: &'static [&'static str],
+}
+
+macro_rules! scenario {
+    ($f:literal) => {
+        ($f, include_str!(concat!("../../../scenarios/", $f)))
+    };
+}
+
+const NOISELESS: (&str, &str) = scenario!("thesis-fig3.3.toml");
+const FIG45: (&str, &str) = scenario!("thesis-fig4.5.toml");
+const FIG46: (&str, &str) = scenario!("thesis-fig4.6.toml");
+const FIG48: (&str, &str) = scenario!("thesis-fig4.8.toml");
+const FIG49: (&str, &str) = scenario!("thesis-fig4.9.toml");
+const FILTERS: (&str, &str) = scenario!("eusipco.toml");
+
+macro_rules! entry {
+    ($name:literal, $desc:literal, $sc:expr, [$($p:literal),*]) => {
+        Entry { name: $name, description: $desc, file: $sc.0, text: $sc.1, plots: &[$($p),*] }
+    };
+}
+
+/// Every reproducible figure, in paper order.
+pub const ENTRIES: &[Entry] = &[
+    entry!(
+        "eusipco-fig3",
+        "EUSIPCO 2022 Fig. 3: agent paths for MLE, RKF, JRKF, CRKF",
+        FILTERS,
+        ["eusipco-fig3"]
+    ),
+    entry!(
+        "eusipco-fig4a",
+        "EUSIPCO 2022 Fig. 4a: trace of the posterior covariance",
+        FILTERS,
+        ["eusipco-fig4a"]
+    ),
+    entry!(
+        "eusipco-fig4b",
+        "EUSIPCO 2022 Fig. 4b: estimation error, mean ± 1σ over 50 runs",
+        FILTERS,
+        ["eusipco-fig4b"]
+    ),
+    entry!(
+        "thesis-fig3.3",
+        "thesis Fig. 3.3: noiseless convergence to a rigid formation (Procrustes)",
+        NOISELESS,
+        ["thesis-fig3.3"]
+    ),
+    entry!(
+        "thesis-fig3.4",
+        "thesis Fig. 3.4: noiseless agent paths",
+        NOISELESS,
+        ["thesis-fig3.4"]
+    ),
+    entry!(
+        "thesis-fig4.5",
+        "thesis Fig. 4.5: no estimator vs MLE for T = 10, 100 (observation noise)",
+        FIG45,
+        ["thesis-fig4.5"]
+    ),
+    entry!(
+        "thesis-fig4.6",
+        "thesis Fig. 4.6: MMSE filter for three prior variances vs MLE",
+        FIG46,
+        ["thesis-fig4.6"]
+    ),
+    entry!(
+        "thesis-fig4.8",
+        "thesis Fig. 4.8: none, MLE, MMSE, RKF with observation noise only",
+        FIG48,
+        ["thesis-fig4.8"]
+    ),
+    entry!(
+        "thesis-fig4.9",
+        "thesis Fig. 4.9: Procrustes error with observation and process noise",
+        FIG49,
+        ["thesis-fig4.9"]
+    ),
+    entry!(
+        "thesis-fig4.10",
+        "thesis Fig. 4.10: estimation error with observation and process noise",
+        FIG49,
+        ["thesis-fig4.10"]
+    ),
+    entry!(
+        "thesis-fig4.11",
+        "thesis Fig. 4.11: agent paths, σ_v = 0.1, σ_w = 0.001",
+        FIG49,
+        ["thesis-fig4.11"]
+    ),
+    entry!(
+        "thesis-fig5.1",
+        "thesis Fig. 5.1: trace of the posterior covariance",
+        FILTERS,
+        ["thesis-fig5.1"]
+    ),
+    entry!(
+        "thesis-fig5.2",
+        "thesis Fig. 5.2: estimation error ε_k",
+        FILTERS,
+        ["thesis-fig5.2"]
+    ),
+    entry!(
+        "thesis-fig5.3",
+        "thesis Fig. 5.3: Procrustes error",
+        FILTERS,
+        ["thesis-fig5.3"]
+    ),
+];
+
+/// Looks a name up.
+pub fn find(name: &str) -> Option<&'static Entry> {
+    ENTRIES.iter().find(|e| e.name == name)
+}
