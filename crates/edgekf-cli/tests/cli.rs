@@ -1,0 +1,162 @@
+//! The command line as a user meets it: bad input ends with a clear message naming the file, the
+//! key and the problem, a non-zero exit code, and no output; good input round-trips exactly.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn edgekf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_edgekf")).args(args).output().expect("runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("edgekf-cli-{}-{name}", std::process::id()));
+    let _ = fs::remove_dir_all(&d);
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A 4-agent square with the stress of its affine dependency (rank N − D − 1 = 1).
+const SQUARE: &str = r#"
+name = "square"
+estimators = ["mle", "rkf"]
+
+[framework]
+dim = 2
+config = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+edges = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]
+weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]
+leaders = [0, 1, 2]
+
+[sim]
+steps = 200
+runs = 3
+every = 20
+
+[noise]
+sigma_w = 0.001
+sigma_v = 0.1
+"#;
+
+fn write_scenario(dir: &Path, text: &str) -> PathBuf {
+    let p = dir.join("scenario.toml");
+    fs::write(&p, text).unwrap();
+    p
+}
+
+/// Runs a scenario that must fail; returns stderr after checking exit code and no output.
+fn fails(name: &str, text: &str, extra: &[&str]) -> String {
+    let dir = tmp(name);
+    let sc = write_scenario(&dir, text);
+    let out = dir.join("out");
+    let mut args = vec!["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = edgekf(&args);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!o.status.success(), "{name}: expected failure");
+    assert_eq!(o.status.code(), Some(1), "{name}: exit code 1, not a panic (101)");
+    assert!(!err.contains("panicked"), "{name}: {err}");
+    assert!(!out.exists(), "{name}: no output is left behind");
+    assert!(err.contains("scenario.toml"), "{name}: names the file: {err}");
+    err
+}
+
+#[test]
+fn good_scenario_runs_and_round_trips_exactly() {
+    let dir = tmp("good");
+    let sc = write_scenario(&dir, SQUARE);
+    let out1 = dir.join("out1");
+    let o = edgekf(&["run", sc.to_str().unwrap(), "--out", out1.to_str().unwrap(), "--threads", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["scenario.json", "metrics.csv", "paths.csv"] {
+        assert!(out1.join(f).exists(), "{f}");
+    }
+    let csv = fs::read_to_string(out1.join("metrics.csv")).unwrap();
+    assert!(csv.starts_with("estimator,step,time,metric,mean,std\n"));
+    // 2 estimators × 4 metrics × reported steps {1, 20, …, 200} = 11.
+    assert_eq!(csv.lines().count(), 1 + 2 * 4 * 11);
+    let json: serde_json::Value = serde_json::from_str(&fs::read_to_string(out1.join("scenario.json")).unwrap()).unwrap();
+    assert_eq!(json["schema"], "edgekf.scenario/1");
+    assert_eq!(json["edges"].as_array().unwrap().len(), 12);
+    assert_eq!(json["meas_cov"].as_array().unwrap().len(), 12);
+    let out2 = dir.join("out2");
+    let o = edgekf(&["run", out1.join("scenario.json").to_str().unwrap(), "--out", out2.to_str().unwrap(), "--threads", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(fs::read(out1.join("metrics.csv")).unwrap(), fs::read(out2.join("metrics.csv")).unwrap());
+    assert_eq!(fs::read(out1.join("scenario.json")).unwrap(), fs::read(out2.join("scenario.json")).unwrap());
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let err = fails("unknown", &SQUARE.replace("sigma_v = 0.1", "sigma_vv = 0.1"), &[]);
+    assert!(err.contains("sigma_vv"), "{err}");
+}
+
+#[test]
+fn wrong_dimension_is_named() {
+    let err = fails("dim", &SQUARE.replace("[sim]", "[init]\nmean = [0.0, 0.0, 0.0]\n\n[sim]"), &[]);
+    assert!(err.contains("init.mean") && err.contains("dim = 2"), "{err}");
+}
+
+#[test]
+fn non_psd_covariance_is_named() {
+    let err = fails("psd", &SQUARE.replace("[sim]", "[init]\ncov = [[1.0, 2.0], [2.0, 1.0]]\n\n[sim]"), &[]);
+    assert!(err.contains("init.cov") && err.contains("positive semidefinite"), "{err}");
+}
+
+#[test]
+fn leader_not_in_graph_is_named() {
+    let err = fails("leader", &SQUARE.replace("leaders = [0, 1, 2]", "leaders = [0, 1, 7]"), &[]);
+    assert!(err.contains("framework") && err.contains("leader 7 is not an agent"), "{err}");
+}
+
+#[test]
+fn weights_not_matching_the_graph_are_named() {
+    let err = fails("weights", &SQUARE.replace("weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]", "weights = [1.0, -1.0, 1.0, 1.0, -1.0]"), &[]);
+    assert!(err.contains("5 weights given for 6 links"), "{err}");
+    let err = fails("stress", &SQUARE.replace("weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]", "weights = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]"), &[]);
+    assert!(err.contains("rank") || err.contains("null space"), "{err}");
+}
+
+#[test]
+fn zero_runs_and_bad_flags_are_named() {
+    let err = fails("runs", &SQUARE.replace("runs = 3", "runs = 0"), &[]);
+    assert!(err.contains("sim.runs"), "{err}");
+    let err = fails("flag", SQUARE, &["--runs", "0"]);
+    assert!(err.contains("--runs"), "{err}");
+    let dir = tmp("threads");
+    let sc = write_scenario(&dir, SQUARE);
+    let o = edgekf(&["run", sc.to_str().unwrap(), "--out", dir.join("o").to_str().unwrap(), "--threads", "0"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+    assert!(!dir.join("o").exists());
+}
+
+#[test]
+fn missing_file_and_unknown_figure_fail_cleanly() {
+    let o = edgekf(&["run", "/nonexistent/x.toml", "--out", "/tmp/never"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/x.toml"));
+    let o = edgekf(&["reproduce", "thesis-fig9.9", "--out", "/tmp/never"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("thesis-fig9.9"));
+}
+
+#[test]
+fn reproduce_lists_and_runs_figures() {
+    let o = edgekf(&["reproduce", "--list"]);
+    assert!(o.status.success());
+    let list = String::from_utf8_lossy(&o.stdout).to_string();
+    let names: Vec<&str> = list.lines().map(|l| l.split('\t').next().unwrap()).collect();
+    for want in ["eusipco-fig3", "eusipco-fig4a", "eusipco-fig4b", "thesis-fig3.3", "thesis-fig4.5", "thesis-fig5.3"] {
+        assert!(names.contains(&want), "{want} in {names:?}");
+    }
+    let dir = tmp("reproduce");
+    let o = edgekf(&[
+        "reproduce", "thesis-fig4.5", "eusipco-fig3", "--out", dir.to_str().unwrap(), "--steps", "300", "--runs", "3",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("thesis-fig4.5/thesis-fig4.5.png").exists());
+    assert!(dir.join("eusipco-fig3/eusipco-fig3.png").exists());
+    assert!(dir.join("eusipco-fig3/metrics.csv").exists());
+}
