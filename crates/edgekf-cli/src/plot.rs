@@ -131,7 +131,7 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
             .configure_mesh()
             .x_desc("time [s]")
             .y_desc(metric_label(metric))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.1e}"))
             .label_style(("sans-serif", 16))
             .axis_desc_style(("sans-serif", 18))
             .draw()
