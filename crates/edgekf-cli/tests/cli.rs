@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn edgekf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_edgekf")).args(args).output().expect("runs")
+    Command::new(env!("CARGO_BIN_EXE_edgekf"))
+        .args(args)
+        .output()
+        .expect("runs")
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -54,10 +57,17 @@ fn fails(name: &str, text: &str, extra: &[&str]) -> String {
     let o = edgekf(&args);
     let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(!o.status.success(), "{name}: expected failure");
-    assert_eq!(o.status.code(), Some(1), "{name}: exit code 1, not a panic (101)");
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{name}: exit code 1, not a panic (101)"
+    );
     assert!(!err.contains("panicked"), "{name}: {err}");
     assert!(!out.exists(), "{name}: no output is left behind");
-    assert!(err.contains("scenario.toml"), "{name}: names the file: {err}");
+    assert!(
+        err.contains("scenario.toml"),
+        "{name}: names the file: {err}"
+    );
     err
 }
 
@@ -66,7 +76,14 @@ fn good_scenario_runs_and_round_trips_exactly() {
     let dir = tmp("good");
     let sc = write_scenario(&dir, SQUARE);
     let out1 = dir.join("out1");
-    let o = edgekf(&["run", sc.to_str().unwrap(), "--out", out1.to_str().unwrap(), "--threads", "1"]);
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        out1.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in ["scenario.json", "metrics.csv", "paths.csv"] {
         assert!(out1.join(f).exists(), "{f}");
@@ -75,46 +92,99 @@ fn good_scenario_runs_and_round_trips_exactly() {
     assert!(csv.starts_with("estimator,step,time,metric,mean,std\n"));
     // 2 estimators × 4 metrics × reported steps {1, 20, …, 200} = 11.
     assert_eq!(csv.lines().count(), 1 + 2 * 4 * 11);
-    let json: serde_json::Value = serde_json::from_str(&fs::read_to_string(out1.join("scenario.json")).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out1.join("scenario.json")).unwrap()).unwrap();
     assert_eq!(json["schema"], "edgekf.scenario/1");
     assert_eq!(json["edges"].as_array().unwrap().len(), 12);
     assert_eq!(json["meas_cov"].as_array().unwrap().len(), 12);
     let out2 = dir.join("out2");
-    let o = edgekf(&["run", out1.join("scenario.json").to_str().unwrap(), "--out", out2.to_str().unwrap(), "--threads", "2"]);
+    let o = edgekf(&[
+        "run",
+        out1.join("scenario.json").to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(fs::read(out1.join("metrics.csv")).unwrap(), fs::read(out2.join("metrics.csv")).unwrap());
-    assert_eq!(fs::read(out1.join("scenario.json")).unwrap(), fs::read(out2.join("scenario.json")).unwrap());
+    assert_eq!(
+        fs::read(out1.join("metrics.csv")).unwrap(),
+        fs::read(out2.join("metrics.csv")).unwrap()
+    );
+    assert_eq!(
+        fs::read(out1.join("scenario.json")).unwrap(),
+        fs::read(out2.join("scenario.json")).unwrap()
+    );
 }
 
 #[test]
 fn unknown_key_is_named() {
-    let err = fails("unknown", &SQUARE.replace("sigma_v = 0.1", "sigma_vv = 0.1"), &[]);
+    let err = fails(
+        "unknown",
+        &SQUARE.replace("sigma_v = 0.1", "sigma_vv = 0.1"),
+        &[],
+    );
     assert!(err.contains("sigma_vv"), "{err}");
 }
 
 #[test]
 fn wrong_dimension_is_named() {
-    let err = fails("dim", &SQUARE.replace("[sim]", "[init]\nmean = [0.0, 0.0, 0.0]\n\n[sim]"), &[]);
-    assert!(err.contains("init.mean") && err.contains("dim = 2"), "{err}");
+    let err = fails(
+        "dim",
+        &SQUARE.replace("[sim]", "[init]\nmean = [0.0, 0.0, 0.0]\n\n[sim]"),
+        &[],
+    );
+    assert!(
+        err.contains("init.mean") && err.contains("dim = 2"),
+        "{err}"
+    );
 }
 
 #[test]
 fn non_psd_covariance_is_named() {
-    let err = fails("psd", &SQUARE.replace("[sim]", "[init]\ncov = [[1.0, 2.0], [2.0, 1.0]]\n\n[sim]"), &[]);
-    assert!(err.contains("init.cov") && err.contains("positive semidefinite"), "{err}");
+    let err = fails(
+        "psd",
+        &SQUARE.replace("[sim]", "[init]\ncov = [[1.0, 2.0], [2.0, 1.0]]\n\n[sim]"),
+        &[],
+    );
+    assert!(
+        err.contains("init.cov") && err.contains("positive semidefinite"),
+        "{err}"
+    );
 }
 
 #[test]
 fn leader_not_in_graph_is_named() {
-    let err = fails("leader", &SQUARE.replace("leaders = [0, 1, 2]", "leaders = [0, 1, 7]"), &[]);
-    assert!(err.contains("framework") && err.contains("leader 7 is not an agent"), "{err}");
+    let err = fails(
+        "leader",
+        &SQUARE.replace("leaders = [0, 1, 2]", "leaders = [0, 1, 7]"),
+        &[],
+    );
+    assert!(
+        err.contains("framework") && err.contains("leader 7 is not an agent"),
+        "{err}"
+    );
 }
 
 #[test]
 fn weights_not_matching_the_graph_are_named() {
-    let err = fails("weights", &SQUARE.replace("weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]", "weights = [1.0, -1.0, 1.0, 1.0, -1.0]"), &[]);
+    let err = fails(
+        "weights",
+        &SQUARE.replace(
+            "weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]",
+            "weights = [1.0, -1.0, 1.0, 1.0, -1.0]",
+        ),
+        &[],
+    );
     assert!(err.contains("5 weights given for 6 links"), "{err}");
-    let err = fails("stress", &SQUARE.replace("weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]", "weights = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]"), &[]);
+    let err = fails(
+        "stress",
+        &SQUARE.replace(
+            "weights = [1.0, -1.0, 1.0, 1.0, -1.0, 1.0]",
+            "weights = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]",
+        ),
+        &[],
+    );
     assert!(err.contains("rank") || err.contains("null space"), "{err}");
 }
 
@@ -126,7 +196,14 @@ fn zero_runs_and_bad_flags_are_named() {
     assert!(err.contains("--runs"), "{err}");
     let dir = tmp("threads");
     let sc = write_scenario(&dir, SQUARE);
-    let o = edgekf(&["run", sc.to_str().unwrap(), "--out", dir.join("o").to_str().unwrap(), "--threads", "0"]);
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+        "--threads",
+        "0",
+    ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
     assert!(!dir.join("o").exists());
@@ -147,13 +224,31 @@ fn reproduce_lists_and_runs_figures() {
     let o = edgekf(&["reproduce", "--list"]);
     assert!(o.status.success());
     let list = String::from_utf8_lossy(&o.stdout).to_string();
-    let names: Vec<&str> = list.lines().map(|l| l.split('\t').next().unwrap()).collect();
-    for want in ["eusipco-fig3", "eusipco-fig4a", "eusipco-fig4b", "thesis-fig3.3", "thesis-fig4.5", "thesis-fig5.3"] {
+    let names: Vec<&str> = list
+        .lines()
+        .map(|l| l.split('\t').next().unwrap())
+        .collect();
+    for want in [
+        "eusipco-fig3",
+        "eusipco-fig4a",
+        "eusipco-fig4b",
+        "thesis-fig3.3",
+        "thesis-fig4.5",
+        "thesis-fig5.3",
+    ] {
         assert!(names.contains(&want), "{want} in {names:?}");
     }
     let dir = tmp("reproduce");
     let o = edgekf(&[
-        "reproduce", "thesis-fig4.5", "eusipco-fig3", "--out", dir.to_str().unwrap(), "--steps", "300", "--runs", "3",
+        "reproduce",
+        "thesis-fig4.5",
+        "eusipco-fig3",
+        "--out",
+        dir.to_str().unwrap(),
+        "--steps",
+        "300",
+        "--runs",
+        "3",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("thesis-fig4.5/thesis-fig4.5.png").exists());

@@ -40,6 +40,66 @@ pub fn invert_spd(a: &DMatrix<f64>, work: &mut DMatrix<f64>, out: &mut DMatrix<f
     true
 }
 
+/// `c = a b + beta c` for column-major dense matrices, without allocating (nalgebra's `gemm`
+/// hands large-enough products to `matrixmultiply`, which allocates packing buffers per call).
+pub fn gemm_nn(c: &mut DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>, beta: f64) {
+    let (m, kk) = a.shape();
+    let n = b.ncols();
+    debug_assert_eq!(b.nrows(), kk);
+    debug_assert_eq!(c.shape(), (m, n));
+    let (a, b) = (a.as_slice(), b.as_slice());
+    let c = c.as_mut_slice();
+    for j in 0..n {
+        let cj = &mut c[j * m..(j + 1) * m];
+        if beta == 0.0 {
+            cj.fill(0.0);
+        } else if beta != 1.0 {
+            cj.iter_mut().for_each(|v| *v *= beta);
+        }
+        for k in 0..kk {
+            let bkj = b[j * kk + k];
+            for (cv, av) in cj.iter_mut().zip(&a[k * m..(k + 1) * m]) {
+                *cv += av * bkj;
+            }
+        }
+    }
+}
+
+/// `c = aᵀ b + beta c` for column-major dense matrices, without allocating.
+pub fn gemm_tn(c: &mut DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>, beta: f64) {
+    let (kk, m) = a.shape();
+    let n = b.ncols();
+    debug_assert_eq!(b.nrows(), kk);
+    debug_assert_eq!(c.shape(), (m, n));
+    let (a, b) = (a.as_slice(), b.as_slice());
+    let c = c.as_mut_slice();
+    for j in 0..n {
+        let bj = &b[j * kk..(j + 1) * kk];
+        for i in 0..m {
+            let dot: f64 = a[i * kk..(i + 1) * kk]
+                .iter()
+                .zip(bj)
+                .map(|(x, y)| x * y)
+                .sum();
+            c[j * m + i] = dot
+                + if beta == 0.0 {
+                    0.0
+                } else {
+                    beta * c[j * m + i]
+                };
+        }
+    }
+}
+
+/// `tr(a b)` for symmetric `b` (= Σ a_ij b_ij), without allocating.
+pub fn trace_of_product_sym(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
+    a.as_slice()
+        .iter()
+        .zip(b.as_slice())
+        .map(|(x, y)| x * y)
+        .sum()
+}
+
 /// Whether `new` differs from `old` by at most `8 ε max|old|` in every entry: a covariance
 /// recursion that has converged to rounding level (further steps only add rounding noise).
 pub fn converged(new: &DMatrix<f64>, old: &DMatrix<f64>) -> bool {
@@ -160,6 +220,13 @@ mod tests {
         assert!((id - DMatrix::identity(3, 3)).amax() < 1e-14);
         let f = psd_factor(&a).unwrap();
         assert!((&f * f.transpose() - &a).amax() < 1e-14);
+        let b = DMatrix::from_fn(3, 3, |i, j| (i + 2 * j) as f64 - 1.5);
+        let mut c = DMatrix::from_element(3, 3, 1.0);
+        gemm_nn(&mut c, &a, &b, 2.0);
+        assert!((&c - (&a * &b + DMatrix::from_element(3, 3, 2.0))).amax() < 1e-13);
+        gemm_tn(&mut c, &b, &a, 0.0);
+        assert!((&c - b.transpose() * &a).amax() < 1e-13);
+        assert!((trace_of_product_sym(&b, &a) - (&b * &a).trace()).abs() < 1e-12);
         // A singular PSD matrix still has a factor; an indefinite one has none.
         let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
         let f = psd_factor(&s).unwrap();

@@ -23,7 +23,9 @@
 use nalgebra::DMatrix;
 
 use super::{EdgeModel, Estimator, StepInput};
-use crate::linalg::{batch_gemv, batch_gemv_acc, converged, invert_spd, to_row_major};
+use crate::linalg::{
+    batch_gemv, batch_gemv_acc, converged, invert_spd, to_row_major, trace_of_product_sym,
+};
 
 /// The CRKF.
 #[derive(Debug, Clone)]
@@ -147,14 +149,14 @@ impl Crkf {
         self.frozen = converged(&self.next, &self.sigma);
         std::mem::swap(&mut self.next, &mut self.sigma);
         to_row_major(&self.sigma, &mut self.sigma_rm);
-        self.trace = self.sigma.component_mul(&self.gtg).sum();
+        self.trace = trace_of_product_sym(&self.sigma, &self.gtg);
     }
 }
 
 impl Estimator for Crkf {
     fn reset(&mut self) {
         self.sigma.copy_from(&self.sigma0);
-        self.trace = self.sigma.component_mul(&self.gtg).sum();
+        self.trace = trace_of_product_sym(&self.sigma, &self.gtg);
         self.frozen = false;
         self.zeta.fill(0.0);
         self.x.fill(0.0);

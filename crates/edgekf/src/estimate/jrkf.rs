@@ -20,7 +20,7 @@
 use nalgebra::DMatrix;
 
 use super::{EdgeModel, Estimator, StepInput};
-use crate::linalg::{batch_gemv_acc, converged, spd_solve_in_place, symmetrize};
+use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
 
 #[derive(Debug, Clone)]
 struct Block {
@@ -56,10 +56,10 @@ impl Block {
         self.at.fill_diagonal(1.0);
         self.at -= &self.kt;
         // Σ⁺ = A Σ⁻ Aᵀ + K W Kᵀ with A = I − K (Joseph form); `s` is free scratch now.
-        self.tmp.gemm(1.0, &self.prior, &self.at, 0.0);
-        self.s.gemm_tr(1.0, &self.at, &self.tmp, 0.0);
-        self.tmp.gemm(1.0, &self.w, &self.kt, 0.0);
-        self.s.gemm_tr(1.0, &self.kt, &self.tmp, 1.0);
+        gemm_nn(&mut self.tmp, &self.prior, &self.at, 0.0);
+        gemm_tn(&mut self.s, &self.at, &self.tmp, 0.0);
+        gemm_nn(&mut self.tmp, &self.w, &self.kt, 0.0);
+        gemm_tn(&mut self.s, &self.kt, &self.tmp, 1.0);
         symmetrize(&mut self.s);
         let fixed = converged(&self.s, &self.sigma);
         std::mem::swap(&mut self.s, &mut self.sigma);

@@ -1,0 +1,57 @@
+//! The step loop allocates nothing: the number of heap allocations of a whole simulation does not
+//! grow with the number of steps (same estimators, same number of reported steps).
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use common::{hexagon, names, table};
+
+struct Counting;
+
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn allocations_do_not_grow_with_steps() {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mut estimators = names(&["none", "mle", "rkf", "jrkf", "crkf", "oracle"]);
+    estimators.push(table("mmse", "mmse", None, Some(1e-3)));
+    // Both report exactly steps {1, every, steps}: 3 reports.
+    let count = |steps: usize| {
+        let sc = hexagon(0.001, 0.1, steps, 3, steps / 2, estimators.clone());
+        pool.install(|| {
+            let before = ALLOCS.load(Ordering::SeqCst);
+            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+            let after = ALLOCS.load(Ordering::SeqCst);
+            assert_eq!(res.steps.len(), 3);
+            after - before
+        })
+    };
+    let short = count(200);
+    let long = count(4000);
+    assert_eq!(
+        short, long,
+        "allocations: {short} for 200 steps, {long} for 4000 steps"
+    );
+}
