@@ -577,6 +577,19 @@ impl Scenario {
         Theorem1Report::compute(&self.model, &self.observers, self.q, self.gamma)
     }
 
+    /// Spectral radius of the linear closed loop: in the coordinates `(x, E)` it is block triangular,
+    /// `[[A, −k₂ [D; 0]], [0, 𝒜]]`, so its eigenvalues are those of `A` and of the error system `𝒜` (eq. 21).
+    /// RK4 is stable for `h ρ ≲ 2.78` on the negative real axis; its local error scales as `(h ρ)⁵`.
+    pub fn closed_loop_spectral_radius(&self) -> f64 {
+        let err = crate::observer::error_system_matrix(
+            &self.model,
+            &self.observers,
+            self.gamma,
+            crate::observer::ConsensusSign::Eq19,
+        );
+        crate::linalg::spectral_radius(&self.model.a).max(crate::linalg::spectral_radius(&err))
+    }
+
     /// Time of RK4 step `k` with step `h`: `k / (1/h)` when `1/h` is an integer (so that grid times print
     /// exactly, e.g. `0.3`), `k h` otherwise.
     pub fn time_of_step(k: usize, h: f64) -> f64 {

@@ -40,8 +40,14 @@ pub struct Theorem1Report {
     pub witness: Option<(f64, f64)>,
     /// `𝕄` at the witness, or its limit `δ, τ → ∞` when there is none.
     pub m_matrix: Matrix2<f64>,
-    /// The largest `δ = 2⁻ᵏ ≤ 1` for which the printed `+1/δ` version of (24) holds (`None` if none ≥ 2⁻¹⁰⁰).
-    pub plus_sign_delta: Option<f64>,
+    /// `Ω(∞) = diag(P̄_i⁻¹ Ḡ_i Q Ḡ_iᵀ P̄_i⁻¹ + H̄_iᵀ R_i⁻¹ H̄_i) − (Ψ + Ψᵀ)`; `Ω(δ) = Ω(∞) − δ⁻¹ diag(P̄_i⁻²)`.
+    pub omega_inf: DMatrix<f64>,
+    /// `diag(P̄_i⁻²)`, the direction of the `δ⁻¹` term.
+    pub p_inv_sq: DMatrix<f64>,
+    /// `diag(P̄_i⁻¹)`.
+    pub p_inv: DMatrix<f64>,
+    /// `Ψ = k₂ diag(P̄_i⁻¹) diag(Z_iᵀ) D̄ diag(Z_i)`.
+    pub psi: DMatrix<f64>,
     /// Spectral abscissa of the error system (eq. 21) with eq. (19)'s consensus sign.
     pub error_abscissa: f64,
     /// Spectral abscissa with eq. (10)'s sign.
@@ -62,6 +68,15 @@ fn block_diag(blocks: &[DMatrix<f64>]) -> DMatrix<f64> {
 }
 
 impl Theorem1Report {
+    /// `Ω(δ)` of eq. (24) with the corrected `−δ⁻¹` (`plus = false`) or as printed, `+δ⁻¹` (`plus = true`).
+    pub fn omega(&self, delta: f64, plus: bool) -> DMatrix<f64> {
+        if plus {
+            &self.omega_inf + &self.p_inv_sq / delta
+        } else {
+            &self.omega_inf - &self.p_inv_sq / delta
+        }
+    }
+
     /// Computes the report for designed observers with `Q = q I` and coupling gain `gamma`.
     pub fn compute(model: &Model, observers: &[RobotObserver], q: f64, gamma: f64) -> Self {
         let n = model.n;
@@ -130,15 +145,6 @@ impl Theorem1Report {
                 v *= 2.0;
             }
         }
-        let mut plus_sign_delta = None;
-        let mut v = 1.0_f64;
-        for _ in 0..=100 {
-            if min_sym_eigenvalue(&(&omega_inf + &delta_dir / v)) > 0.0 {
-                plus_sign_delta = Some(v);
-                break;
-            }
-            v /= 2.0;
-        }
         let error_abscissa = spectral_abscissa(&error_system_matrix(model, observers, gamma, ConsensusSign::Eq19));
         let error_abscissa_eq10 = spectral_abscissa(&error_system_matrix(model, observers, gamma, ConsensusSign::Eq10));
         Self {
@@ -151,7 +157,10 @@ impl Theorem1Report {
             condition25,
             witness,
             m_matrix,
-            plus_sign_delta,
+            omega_inf,
+            p_inv_sq: delta_dir,
+            p_inv: block_diag(&p_inv),
+            psi,
             error_abscissa,
             error_abscissa_eq10,
         }
