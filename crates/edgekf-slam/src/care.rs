@@ -95,12 +95,27 @@ pub fn hamiltonian(a: &DMatrix<f64>, s: &DMatrix<f64>, w: &DMatrix<f64>) -> DMat
 /// # Errors
 /// [`CareError::NoConvergence`] when the Schur iteration fails.
 pub fn closest_to_imaginary_axis(h: &DMatrix<f64>) -> Result<Complex<f64>, CareError> {
-    let ev = eigenvalues(h).ok_or(CareError::NoConvergence { what: "Hamiltonian Schur iteration" })?;
-    Ok(ev.into_iter().fold(Complex::new(f64::INFINITY, 0.0), |best, z| if z.re.abs() < best.re.abs() { z } else { best }))
+    let ev = eigenvalues(h).ok_or(CareError::NoConvergence {
+        what: "Hamiltonian Schur iteration",
+    })?;
+    Ok(ev
+        .into_iter()
+        .fold(Complex::new(f64::INFINITY, 0.0), |best, z| {
+            if z.re.abs() < best.re.abs() {
+                z
+            } else {
+                best
+            }
+        }))
 }
 
 /// The residual `Ā P + P Āᵀ + W − P S P`.
-pub fn residual(a: &DMatrix<f64>, s: &DMatrix<f64>, w: &DMatrix<f64>, p: &DMatrix<f64>) -> DMatrix<f64> {
+pub fn residual(
+    a: &DMatrix<f64>,
+    s: &DMatrix<f64>,
+    w: &DMatrix<f64>,
+    p: &DMatrix<f64>,
+) -> DMatrix<f64> {
     let ap = a * p;
     &ap + ap.transpose() + w - p * s * p
 }
@@ -126,7 +141,11 @@ fn sign_function(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let mut z = m.clone();
     let mut scaling = true;
     for _ in 0..200 {
-        let c = if scaling { (-log_abs_det(&z)? / n as f64).exp() } else { 1.0 };
+        let c = if scaling {
+            (-log_abs_det(&z)? / n as f64).exp()
+        } else {
+            1.0
+        };
         let zc = &z * c;
         let inv = zc.clone().try_inverse()?;
         let next = (zc + inv) * 0.5;
@@ -154,7 +173,11 @@ pub fn lyapunov(f: &DMatrix<f64>, c: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let mut ck = c.clone();
     let mut scaling = true;
     for _ in 0..200 {
-        let s = if scaling { (-log_abs_det(&fk)? / n as f64).exp() } else { 1.0 };
+        let s = if scaling {
+            (-log_abs_det(&fk)? / n as f64).exp()
+        } else {
+            1.0
+        };
         let fs = &fk * s;
         let cs = &ck * s;
         let inv = fs.clone().try_inverse()?;
@@ -183,26 +206,41 @@ pub fn lyapunov(f: &DMatrix<f64>, c: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 /// # Errors
 /// [`CareError::ImaginaryAxisEigenvalue`] when no stabilising solution exists; the other variants when the
 /// computed solution fails verification.
-pub fn solve(a: &DMatrix<f64>, s: &DMatrix<f64>, w: &DMatrix<f64>) -> Result<CareSolution, CareError> {
+pub fn solve(
+    a: &DMatrix<f64>,
+    s: &DMatrix<f64>,
+    w: &DMatrix<f64>,
+) -> Result<CareSolution, CareError> {
     let r = a.nrows();
     let ham = hamiltonian(a, s, w);
     let closest = closest_to_imaginary_axis(&ham)?;
     let scale = ham.norm().max(f64::MIN_POSITIVE);
     if closest.re.abs() <= IMAG_AXIS_TOL * scale {
-        return Err(CareError::ImaginaryAxisEigenvalue { re: closest.re, im: closest.im });
+        return Err(CareError::ImaginaryAxisEigenvalue {
+            re: closest.re,
+            im: closest.im,
+        });
     }
-    let sgn = sign_function(&ham).ok_or(CareError::NoConvergence { what: "Hamiltonian sign iteration" })?;
+    let sgn = sign_function(&ham).ok_or(CareError::NoConvergence {
+        what: "Hamiltonian sign iteration",
+    })?;
     // [W12; W22 + I] P = −[W11 + I; W21]  (Byers' least-squares form).
     let mut lhs = DMatrix::zeros(2 * r, r);
-    lhs.view_mut((0, 0), (r, r)).copy_from(&sgn.view((0, r), (r, r)));
-    lhs.view_mut((r, 0), (r, r)).copy_from(&(sgn.view((r, r), (r, r)) + DMatrix::identity(r, r)));
+    lhs.view_mut((0, 0), (r, r))
+        .copy_from(&sgn.view((0, r), (r, r)));
+    lhs.view_mut((r, 0), (r, r))
+        .copy_from(&(sgn.view((r, r), (r, r)) + DMatrix::identity(r, r)));
     let mut rhs = DMatrix::zeros(2 * r, r);
-    rhs.view_mut((0, 0), (r, r)).copy_from(&(-(sgn.view((0, 0), (r, r)) + DMatrix::identity(r, r))));
-    rhs.view_mut((r, 0), (r, r)).copy_from(&(-sgn.view((r, 0), (r, r))));
+    rhs.view_mut((0, 0), (r, r))
+        .copy_from(&(-(sgn.view((0, 0), (r, r)) + DMatrix::identity(r, r))));
+    rhs.view_mut((r, 0), (r, r))
+        .copy_from(&(-sgn.view((r, 0), (r, r))));
     let p = lhs
         .svd(true, true)
         .solve(&rhs, 1e-14)
-        .map_err(|_| CareError::NoConvergence { what: "sign-function subspace solve" })?;
+        .map_err(|_| CareError::NoConvergence {
+            what: "sign-function subspace solve",
+        })?;
     let mut p = (&p + p.transpose()) * 0.5;
     let mut res = residual(a, s, w, &p).norm();
     // Newton–Kleinman refinement: (Ā − P S) X + X (Ā − P S)ᵀ + W + P S P = 0.
@@ -226,12 +264,14 @@ pub fn solve(a: &DMatrix<f64>, s: &DMatrix<f64>, w: &DMatrix<f64>) -> Result<Car
     let ap = a * &p;
     let denom = 2.0 * ap.norm() + w.norm() + (&p * s * &p).norm();
     let min_eig = min_sym_eigenvalue(&p);
-    if !(min_eig > 0.0) {
+    if min_eig.is_nan() || min_eig <= 0.0 {
         return Err(CareError::NotPositiveDefinite { min_eig });
     }
     let closed_loop_abscissa = spectral_abscissa(&(a - &p * s));
-    if !(closed_loop_abscissa < 0.0) {
-        return Err(CareError::NotStabilising { abscissa: closed_loop_abscissa });
+    if closed_loop_abscissa.is_nan() || closed_loop_abscissa >= 0.0 {
+        return Err(CareError::NotStabilising {
+            abscissa: closed_loop_abscissa,
+        });
     }
     Ok(CareSolution {
         p,
@@ -259,7 +299,11 @@ mod tests {
         )
         .unwrap();
         let exact = (a + (a * a + s * w).sqrt()) / s;
-        assert!((sol.p[(0, 0)] - exact).abs() < 1e-13, "{} vs {exact}", sol.p[(0, 0)]);
+        assert!(
+            (sol.p[(0, 0)] - exact).abs() < 1e-13,
+            "{} vs {exact}",
+            sol.p[(0, 0)]
+        );
         assert!(sol.closed_loop_abscissa < 0.0);
     }
 
@@ -277,7 +321,10 @@ mod tests {
         // ẋ = 0 with no process noise and no measurement: eigenvalue 0 of the Hamiltonian.
         let z = DMatrix::zeros(1, 1);
         let e = solve(&z, &z, &z).unwrap_err();
-        assert!(matches!(e, CareError::ImaginaryAxisEigenvalue { .. }), "{e}");
+        assert!(
+            matches!(e, CareError::ImaginaryAxisEigenvalue { .. }),
+            "{e}"
+        );
         assert!(e.to_string().contains("no stabilising solution"));
     }
 }

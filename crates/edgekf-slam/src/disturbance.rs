@@ -49,7 +49,10 @@ impl Disturbance {
         let s = self.window(t);
         for (k, o) in out.iter_mut().enumerate() {
             *o = if s > 0.0 {
-                self.omega_amplitude * s * (TAU * self.omega_frequency * t + self.omega_phase_per_coordinate * k as f64).sin()
+                self.omega_amplitude
+                    * s
+                    * (TAU * self.omega_frequency * t + self.omega_phase_per_coordinate * k as f64)
+                        .sin()
             } else {
                 0.0
             };
@@ -63,7 +66,9 @@ impl Disturbance {
             *o = if s > 0.0 {
                 self.nu_amplitude
                     * s
-                    * (TAU * self.nu_frequency * t + self.nu_phase_per_row * r as f64 + self.nu_phase_per_robot * i as f64)
+                    * (TAU * self.nu_frequency * t
+                        + self.nu_phase_per_row * r as f64
+                        + self.nu_phase_per_robot * i as f64)
                         .cos()
             } else {
                 0.0

@@ -68,10 +68,18 @@ const REL_TOL: f64 = 1e-12;
 pub fn matrix_from_rows(rows: &[Vec<f64>], n: usize) -> Result<DMatrix<f64>, LaplacianDefect> {
     if rows.len() != n {
         let cols = rows.first().map_or(0, Vec::len);
-        return Err(LaplacianDefect::Shape { rows: rows.len(), cols, n });
+        return Err(LaplacianDefect::Shape {
+            rows: rows.len(),
+            cols,
+            n,
+        });
     }
     if let Some(bad) = rows.iter().find(|r| r.len() != n) {
-        return Err(LaplacianDefect::Shape { rows: rows.len(), cols: bad.len(), n });
+        return Err(LaplacianDefect::Shape {
+            rows: rows.len(),
+            cols: bad.len(),
+            n,
+        });
     }
     Ok(DMatrix::from_fn(n, n, |i, j| rows[i][j]))
 }
@@ -84,7 +92,11 @@ pub fn matrix_from_rows(rows: &[Vec<f64>], n: usize) -> Result<DMatrix<f64>, Lap
 pub fn check_laplacian(l: &DMatrix<f64>, undirected: bool) -> Result<(), LaplacianDefect> {
     let n = l.nrows();
     if l.ncols() != n {
-        return Err(LaplacianDefect::Shape { rows: n, cols: l.ncols(), n });
+        return Err(LaplacianDefect::Shape {
+            rows: n,
+            cols: l.ncols(),
+            n,
+        });
     }
     let scale = l.iter().fold(1.0_f64, |acc, v| acc.max(v.abs()));
     let tol = REL_TOL * scale * n.max(1) as f64;
@@ -98,7 +110,11 @@ pub fn check_laplacian(l: &DMatrix<f64>, undirected: bool) -> Result<(), Laplaci
     for i in 0..n {
         for j in 0..n {
             if i != j && l[(i, j)] > 0.0 {
-                return Err(LaplacianDefect::PositiveOffDiagonal { row: i, col: j, value: l[(i, j)] });
+                return Err(LaplacianDefect::PositiveOffDiagonal {
+                    row: i,
+                    col: j,
+                    value: l[(i, j)],
+                });
             }
         }
         let sum: f64 = l.row(i).iter().sum();
@@ -110,7 +126,12 @@ pub fn check_laplacian(l: &DMatrix<f64>, undirected: bool) -> Result<(), Laplaci
         for i in 0..n {
             for j in (i + 1)..n {
                 if (l[(i, j)] - l[(j, i)]).abs() > tol {
-                    return Err(LaplacianDefect::NotSymmetric { row: i, col: j, a: l[(i, j)], b: l[(j, i)] });
+                    return Err(LaplacianDefect::NotSymmetric {
+                        row: i,
+                        col: j,
+                        a: l[(i, j)],
+                        b: l[(j, i)],
+                    });
                 }
             }
         }
@@ -139,7 +160,8 @@ fn reachable(l: &DMatrix<f64>, start: usize, reversed: bool) -> Vec<bool> {
 /// Whether the directed graph of the Laplacian `l` is strongly connected (Assumption 1 for G⁺).
 pub fn is_strongly_connected(l: &DMatrix<f64>) -> bool {
     let n = l.nrows();
-    n == 0 || (reachable(l, 0, false).iter().all(|&s| s) && reachable(l, 0, true).iter().all(|&s| s))
+    n == 0
+        || (reachable(l, 0, false).iter().all(|&s| s) && reachable(l, 0, true).iter().all(|&s| s))
 }
 
 /// Whether the undirected graph of the symmetric Laplacian `l` is connected (Assumptions 1 and 4).
@@ -149,7 +171,10 @@ pub fn is_connected(l: &DMatrix<f64>) -> bool {
 
 /// The in-neighbours `j` of `i` (edges `(i, j)`, `l_ij < 0`) in increasing order, with weights `a_ij = −l_ij`.
 pub fn neighbours(l: &DMatrix<f64>, i: usize) -> Vec<(usize, f64)> {
-    (0..l.ncols()).filter(|&j| j != i && l[(i, j)] < 0.0).map(|j| (j, -l[(i, j)])).collect()
+    (0..l.ncols())
+        .filter(|&j| j != i && l[(i, j)] < 0.0)
+        .map(|j| (j, -l[(i, j)]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -166,7 +191,10 @@ mod tests {
         let cycle = m(&[&[1.0, -1.0, 0.0], &[0.0, 1.0, -1.0], &[-1.0, 0.0, 1.0]]);
         assert!(check_laplacian(&cycle, false).is_ok());
         assert!(is_strongly_connected(&cycle));
-        assert!(matches!(check_laplacian(&cycle, true), Err(LaplacianDefect::NotSymmetric { .. })));
+        assert!(matches!(
+            check_laplacian(&cycle, true),
+            Err(LaplacianDefect::NotSymmetric { .. })
+        ));
         let path = m(&[&[1.0, -1.0, 0.0], &[0.0, 1.0, -1.0], &[0.0, 0.0, 0.0]]);
         assert!(!is_strongly_connected(&path));
     }
@@ -178,7 +206,11 @@ mod tests {
         assert_eq!(e.to_string(), "row 0 sums to -1, not 0");
         let pos = m(&[&[-1.0, 1.0], &[1.0, -1.0]]);
         let e = check_laplacian(&pos, true).unwrap_err();
-        assert!(e.to_string().contains("off-diagonal entry (0, 1) = 1 is positive"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("off-diagonal entry (0, 1) = 1 is positive"),
+            "{e}"
+        );
         let e = matrix_from_rows(&[vec![1.0, -1.0]], 2).unwrap_err();
         assert_eq!(e.to_string(), "it is 1 × 2, expected 2 × 2");
     }

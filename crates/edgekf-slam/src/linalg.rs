@@ -30,7 +30,9 @@ pub fn null_space(m: &DMatrix<f64>, tol: f64) -> DMatrix<f64> {
     padded.view_mut((0, 0), (m.nrows(), cols)).copy_from(m);
     let svd = padded.svd(false, true);
     let vt = svd.v_t.expect("SVD was asked for V");
-    let keep: Vec<usize> = (0..cols).filter(|&k| svd.singular_values[k] <= tol).collect();
+    let keep: Vec<usize> = (0..cols)
+        .filter(|&k| svd.singular_values[k] <= tol)
+        .collect();
     DMatrix::from_fn(cols, keep.len(), |r, c| vt[(keep[c], r)])
 }
 
@@ -88,18 +90,25 @@ pub fn eigenvalues(m: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
 
 /// Spectral abscissa `max Re λ(m)` (`NaN` when the eigenvalue iteration fails).
 pub fn spectral_abscissa(m: &DMatrix<f64>) -> f64 {
-    eigenvalues(m).map_or(f64::NAN, |ev| ev.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max))
+    eigenvalues(m).map_or(f64::NAN, |ev| {
+        ev.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max)
+    })
 }
 
 /// Spectral radius `max |λ(m)|` (`NaN` when the eigenvalue iteration fails).
 pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
-    eigenvalues(m).map_or(f64::NAN, |ev| ev.iter().map(|z| z.norm()).fold(0.0, f64::max))
+    eigenvalues(m).map_or(f64::NAN, |ev| {
+        ev.iter().map(|z| z.norm()).fold(0.0, f64::max)
+    })
 }
 
 /// Smallest eigenvalue of the symmetric part of `m`.
 pub fn min_sym_eigenvalue(m: &DMatrix<f64>) -> f64 {
     let s = (m + m.transpose()) * 0.5;
-    s.symmetric_eigenvalues().iter().copied().fold(f64::INFINITY, f64::min)
+    s.symmetric_eigenvalues()
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Rank of the matrix `[m; m a; …; m a^{N−1}]` computed by the same deflation: `N − dim` of the unobservable

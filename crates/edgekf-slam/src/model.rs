@@ -78,7 +78,13 @@ pub fn system_matrix(n: usize, m: usize, k1: f64, k2: f64, l_f: &DMatrix<f64>) -
 ///
 /// Eq. (17) as printed gives, for `j < i`, the blocks `[0_{2(j−1)}, −I₂, 0_{2i−2−2j}, I₂, 0_{n−i}]` whose widths
 /// sum to `n + i`, not `2n`: the last block is `0_{2(n−i)}`. Here the blocks are placed by index.
-pub fn measurement_matrix(n: usize, m: usize, i: usize, measured: &[usize], landmarks: &[usize]) -> DMatrix<f64> {
+pub fn measurement_matrix(
+    n: usize,
+    m: usize,
+    i: usize,
+    measured: &[usize],
+    landmarks: &[usize],
+) -> DMatrix<f64> {
     let rows = 2 * (1 + measured.len() + landmarks.len());
     let mut h = DMatrix::zeros(rows, 2 * (n + m));
     let mut put = |r: usize, col_block: usize, sign: f64| {
@@ -214,8 +220,8 @@ impl Model {
             pc[1] += x[2 * i + 1];
         }
         let pcs = self.centroid_reference(t);
-        for c in 0..2 {
-            pc[c] /= n as f64;
+        for v in &mut pc {
+            *v /= n as f64;
         }
         for i in 0..n {
             for c in 0..2 {

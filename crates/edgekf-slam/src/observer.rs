@@ -64,7 +64,16 @@ pub fn design_robot(model: &Model, i: usize, q: f64, r_i: f64) -> Result<RobotOb
     let k_bar = &care.p * h_bar.transpose() * &r_inv;
     let k = z * &k_bar;
     let w_proj = &decomposition.w * decomposition.w.transpose();
-    Ok(RobotObserver { decomposition, a11, h_bar, r, care, k_bar, k, w_proj })
+    Ok(RobotObserver {
+        decomposition,
+        a11,
+        h_bar,
+        r,
+        care,
+        k_bar,
+        k,
+        w_proj,
+    })
 }
 
 /// The CARE (eq. 20) exactly as printed, with `Ḡ_i = Z_iᵀ G` and the plant's `G = [I_{2n}; 0]`, `Q = q I_{2n}`.
@@ -90,12 +99,26 @@ pub fn printed_care(model: &Model, obs: &RobotObserver, q: f64) -> PrintedCare {
     let ham = care::hamiltonian(&obs.a11, &s, &w);
     let hamiltonian_norm = ham.norm();
     let eig = crate::linalg::eigenvalues(&ham).unwrap_or_default();
-    let on_axis = eig.iter().filter(|z| z.re.abs() <= care::IMAG_AXIS_TOL * hamiltonian_norm).count();
+    let on_axis = eig
+        .iter()
+        .filter(|z| z.re.abs() <= care::IMAG_AXIS_TOL * hamiltonian_norm)
+        .count();
     let closest_eigenvalue = eig
         .iter()
         .copied()
-        .fold(Complex::new(f64::INFINITY, 0.0), |b, z| if z.re.abs() < b.re.abs() { z } else { b });
-    PrintedCare { closest_eigenvalue, hamiltonian_norm, on_axis, result: care::solve(&obs.a11, &s, &w) }
+        .fold(Complex::new(f64::INFINITY, 0.0), |b, z| {
+            if z.re.abs() < b.re.abs() {
+                z
+            } else {
+                b
+            }
+        });
+    PrintedCare {
+        closest_eigenvalue,
+        hamiltonian_norm,
+        on_axis,
+        result: care::solve(&obs.a11, &s, &w),
+    }
 }
 
 /// Sign of the consensus term.
@@ -109,7 +132,12 @@ pub enum ConsensusSign {
 
 /// The matrix of the linear error dynamics (eq. 21), `Ė = 𝒜 E + diag(K_i) ν − 1_n ⊗ G ω`:
 /// `𝒜 = diag(A − K_i H_i) ∓ γ diag(W_i W_iᵀ)(𝓛_c ⊗ I_N) + k₂ (1_n ⊗ [D; 0])` (`−d = k₂ [D E; 0]`).
-pub fn error_system_matrix(model: &Model, observers: &[RobotObserver], gamma: f64, sign: ConsensusSign) -> DMatrix<f64> {
+pub fn error_system_matrix(
+    model: &Model,
+    observers: &[RobotObserver],
+    gamma: f64,
+    sign: ConsensusSign,
+) -> DMatrix<f64> {
     let n = model.n;
     let dim = model.dim();
     let mut m = DMatrix::zeros(n * dim, n * dim);
@@ -117,8 +145,7 @@ pub fn error_system_matrix(model: &Model, observers: &[RobotObserver], gamma: f6
         ConsensusSign::Eq19 => gamma,
         ConsensusSign::Eq10 => -gamma,
     };
-    for i in 0..n {
-        let ob = &observers[i];
+    for (i, ob) in observers.iter().enumerate().take(n) {
         let diag = &model.a - &ob.k * &model.h[i];
         m.view_mut((i * dim, i * dim), (dim, dim)).copy_from(&diag);
         for j in 0..n {

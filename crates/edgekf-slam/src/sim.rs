@@ -27,14 +27,19 @@ impl Trajectory {
 
     /// `sqrt(Σ_i ‖x̂_i − x‖²)` at sample `k`.
     pub fn total_error(&self, k: usize) -> f64 {
-        (0..self.xhat[k].len()).map(|i| self.error(k, i).norm_squared()).sum::<f64>().sqrt()
+        (0..self.xhat[k].len())
+            .map(|i| self.error(k, i).norm_squared())
+            .sum::<f64>()
+            .sqrt()
     }
 
     /// The stacked error `E = [e_1; …; e_n]` at sample `k`.
     pub fn stacked_error(&self, k: usize) -> DVector<f64> {
         let n = self.xhat[k].len();
         let dim = self.x[k].len();
-        DVector::from_fn(n * dim, |r, _| self.xhat[k][r / dim][r % dim] - self.x[k][r % dim])
+        DVector::from_fn(n * dim, |r, _| {
+            self.xhat[k][r / dim][r % dim] - self.x[k][r % dim]
+        })
     }
 }
 
@@ -53,7 +58,9 @@ fn rhs(sc: &Scenario, ws: &mut Workspace, t: f64, s: &DVector<f64>, out: &mut DV
     let n = model.n;
     let dim = model.dim();
     let x = &s.as_slice()[..dim];
-    let xhat: Vec<&[f64]> = (0..n).map(|i| &s.as_slice()[(i + 1) * dim..(i + 2) * dim]).collect();
+    let xhat: Vec<&[f64]> = (0..n)
+        .map(|i| &s.as_slice()[(i + 1) * dim..(i + 2) * dim])
+        .collect();
     model.control_into(t, x, &xhat, &mut ws.u);
     match &sc.disturbance {
         Some(d) => {
@@ -114,8 +121,12 @@ pub fn simulate_with_step(sc: &Scenario, h: f64, steps: usize, stride: usize) ->
         bu: DVector::zeros(dim),
         u: vec![0.0; 2 * n],
         omega: vec![0.0; 2 * n],
-        nu: (0..n).map(|i| DVector::zeros(model.measurement_rows(i))).collect(),
-        innov: (0..n).map(|i| DVector::zeros(model.measurement_rows(i))).collect(),
+        nu: (0..n)
+            .map(|i| DVector::zeros(model.measurement_rows(i)))
+            .collect(),
+        innov: (0..n)
+            .map(|i| DVector::zeros(model.measurement_rows(i)))
+            .collect(),
         cons: DVector::zeros(dim),
     };
     let (mut k1, mut k2, mut k3, mut k4, mut tmp) = (
@@ -134,7 +145,11 @@ pub fn simulate_with_step(sc: &Scenario, h: f64, steps: usize, stride: usize) ->
     let record = |traj: &mut Trajectory, t: f64, s: &DVector<f64>| {
         traj.times.push(t);
         traj.x.push(s.rows(0, dim).into_owned());
-        traj.xhat.push((0..n).map(|i| s.rows((i + 1) * dim, dim).into_owned()).collect());
+        traj.xhat.push(
+            (0..n)
+                .map(|i| s.rows((i + 1) * dim, dim).into_owned())
+                .collect(),
+        );
     };
     record(&mut traj, 0.0, &s);
     for k in 0..steps {
@@ -169,17 +184,28 @@ pub fn simulate_error_system(sc: &Scenario) -> Vec<DVector<f64>> {
     let model = &sc.model;
     let n = model.n;
     let dim = model.dim();
-    let a = crate::observer::error_system_matrix(model, &sc.observers, sc.gamma, crate::observer::ConsensusSign::Eq19);
+    let a = crate::observer::error_system_matrix(
+        model,
+        &sc.observers,
+        sc.gamma,
+        crate::observer::ConsensusSign::Eq19,
+    );
     let mut e = DVector::from_fn(n * dim, |r, _| sc.xhat0[r / dim][r % dim] - sc.x0[r % dim]);
     let mut omega = vec![0.0; 2 * n];
-    let mut nu: Vec<DVector<f64>> = (0..n).map(|i| DVector::zeros(model.measurement_rows(i))).collect();
-    let f = |t: f64, e: &DVector<f64>, omega: &mut Vec<f64>, nu: &mut Vec<DVector<f64>>| -> DVector<f64> {
+    let mut nu: Vec<DVector<f64>> = (0..n)
+        .map(|i| DVector::zeros(model.measurement_rows(i)))
+        .collect();
+    let f = |t: f64,
+             e: &DVector<f64>,
+             omega: &mut Vec<f64>,
+             nu: &mut Vec<DVector<f64>>|
+     -> DVector<f64> {
         let mut out = &a * e;
         if let Some(d) = &sc.disturbance {
             d.omega_into(t, omega);
-            for i in 0..n {
-                d.nu_into(i, t, nu[i].as_mut_slice());
-                let kv = &sc.observers[i].k * &nu[i];
+            for (i, nu_i) in nu.iter_mut().enumerate() {
+                d.nu_into(i, t, nu_i.as_mut_slice());
+                let kv = &sc.observers[i].k * &*nu_i;
                 let mut blk = out.rows_mut(i * dim, dim);
                 blk += kv;
                 for c in 0..2 * n {

@@ -7,7 +7,9 @@
 
 use crate::care::CareError;
 use crate::disturbance::Disturbance;
-use crate::graph::{check_laplacian, is_connected, is_strongly_connected, matrix_from_rows, LaplacianDefect};
+use crate::graph::{
+    check_laplacian, is_connected, is_strongly_connected, matrix_from_rows, LaplacianDefect,
+};
 use crate::model::Model;
 use crate::observer::{design_robot, RobotObserver};
 use crate::theorem::Theorem1Report;
@@ -303,7 +305,9 @@ fn finite(key: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(ScenarioError::NotFinite { key: key.to_string() })
+        Err(ScenarioError::NotFinite {
+            key: key.to_string(),
+        })
     }
 }
 
@@ -312,7 +316,10 @@ fn positive(key: &str, v: f64) -> Result<f64, ScenarioError> {
     if v > 0.0 {
         Ok(v)
     } else {
-        Err(ScenarioError::NotPositive { key: key.to_string(), value: v })
+        Err(ScenarioError::NotPositive {
+            key: key.to_string(),
+            value: v,
+        })
     }
 }
 
@@ -342,12 +349,20 @@ impl ScenarioSpec {
     pub fn validate(&self) -> Result<Scenario, ScenarioError> {
         if let Some(kind) = &self.kind {
             if kind != KIND {
-                return Err(ScenarioError::WrongTag { key: "kind", expected: KIND, found: kind.clone() });
+                return Err(ScenarioError::WrongTag {
+                    key: "kind",
+                    expected: KIND,
+                    found: kind.clone(),
+                });
             }
         }
         if let Some(schema) = &self.schema {
             if schema != SCHEMA {
-                return Err(ScenarioError::WrongTag { key: "schema", expected: SCHEMA, found: schema.clone() });
+                return Err(ScenarioError::WrongTag {
+                    key: "schema",
+                    expected: SCHEMA,
+                    found: schema.clone(),
+                });
             }
         }
         let n = self.robots.len();
@@ -381,22 +396,34 @@ impl ScenarioSpec {
             let mut s = set.clone();
             for &l in &s {
                 if l >= m {
-                    return Err(ScenarioError::LandmarkOutOfRange { robot: i, index: l, m });
+                    return Err(ScenarioError::LandmarkOutOfRange {
+                        robot: i,
+                        index: l,
+                        m,
+                    });
                 }
                 seen[l] = true;
             }
             s.sort_unstable();
             if let Some(w) = s.windows(2).find(|w| w[0] == w[1]) {
-                return Err(ScenarioError::DuplicateLandmark { robot: i, index: w[0] });
+                return Err(ScenarioError::DuplicateLandmark {
+                    robot: i,
+                    index: w[0],
+                });
             }
             sets.push(s);
         }
         if let Some(l) = seen.iter().position(|s| !s) {
             return Err(ScenarioError::LandmarkUnobserved { landmark: l });
         }
-        let lap = |key: &'static str, rows: &[Vec<f64>], undirected: bool| -> Result<DMatrix<f64>, ScenarioError> {
-            let l = matrix_from_rows(rows, n).map_err(|defect| ScenarioError::NotLaplacian { key, defect })?;
-            check_laplacian(&l, undirected).map_err(|defect| ScenarioError::NotLaplacian { key, defect })?;
+        let lap = |key: &'static str,
+                   rows: &[Vec<f64>],
+                   undirected: bool|
+         -> Result<DMatrix<f64>, ScenarioError> {
+            let l = matrix_from_rows(rows, n)
+                .map_err(|defect| ScenarioError::NotLaplacian { key, defect })?;
+            check_laplacian(&l, undirected)
+                .map_err(|defect| ScenarioError::NotLaplacian { key, defect })?;
             Ok(l)
         };
         let l_c = lap("graphs.communication", &self.graphs.communication, true)?;
@@ -406,7 +433,11 @@ impl ScenarioSpec {
             return Err(ScenarioError::NotStronglyConnected);
         }
         if !is_connected(&l_f) {
-            return Err(ScenarioError::NotConnected { key: "graphs.formation", what: "formation graph G_f", assumption: 1 });
+            return Err(ScenarioError::NotConnected {
+                key: "graphs.formation",
+                what: "formation graph G_f",
+                assumption: 1,
+            });
         }
         if !is_connected(&l_c) {
             return Err(ScenarioError::NotConnected {
@@ -416,11 +447,18 @@ impl ScenarioSpec {
             });
         }
         let l_minus = &l_f - &l_plus;
-        let scale = l_f.iter().chain(l_plus.iter()).fold(1.0_f64, |a, v| a.max(v.abs()));
+        let scale = l_f
+            .iter()
+            .chain(l_plus.iter())
+            .fold(1.0_f64, |a, v| a.max(v.abs()));
         for i in 0..n {
             for j in 0..n {
                 if i != j && l_minus[(i, j)] > 1e-12 * scale {
-                    return Err(ScenarioError::NegativeEstimationWeight { i, j, weight: -l_minus[(i, j)] });
+                    return Err(ScenarioError::NegativeEstimationWeight {
+                        i,
+                        j,
+                        weight: -l_minus[(i, j)],
+                    });
                 }
             }
         }
@@ -447,7 +485,10 @@ impl ScenarioSpec {
         };
         for c in 0..2 {
             finite(&format!("centroid.start[{c}]"), self.centroid.start[c])?;
-            finite(&format!("centroid.velocity[{c}]"), self.centroid.velocity[c])?;
+            finite(
+                &format!("centroid.velocity[{c}]"),
+                self.centroid.velocity[c],
+            )?;
         }
         let step = positive("time.step", self.time.step)?;
         positive("time.horizon", self.time.horizon)?;
@@ -467,7 +508,10 @@ impl ScenarioSpec {
                 ("disturbance.end", d.end),
                 ("disturbance.omega_amplitude", d.omega_amplitude),
                 ("disturbance.omega_frequency", d.omega_frequency),
-                ("disturbance.omega_phase_per_coordinate", d.omega_phase_per_coordinate),
+                (
+                    "disturbance.omega_phase_per_coordinate",
+                    d.omega_phase_per_coordinate,
+                ),
                 ("disturbance.nu_amplitude", d.nu_amplitude),
                 ("disturbance.nu_frequency", d.nu_frequency),
                 ("disturbance.nu_phase_per_row", d.nu_phase_per_row),
@@ -487,7 +531,9 @@ impl ScenarioSpec {
             x0[2 * (n + l) + 1] = p[1];
         }
         let xhat0: Vec<DVector<f64>> = match &self.initial_estimates {
-            InitialEstimatesSpec::Named(InitialEstimateKind::Origin) => vec![DVector::zeros(dim); n],
+            InitialEstimatesSpec::Named(InitialEstimateKind::Origin) => {
+                vec![DVector::zeros(dim); n]
+            }
             InitialEstimatesSpec::Named(InitialEstimateKind::Exact) => vec![x0.clone(); n],
             InitialEstimatesSpec::Explicit(v) => {
                 if v.len() != n {
@@ -516,7 +562,8 @@ impl ScenarioSpec {
                 out
             }
         };
-        let p_star = DVector::from_iterator(2 * n, self.desired.iter().flat_map(|p| p.iter().copied()));
+        let p_star =
+            DVector::from_iterator(2 * n, self.desired.iter().flat_map(|p| p.iter().copied()));
         let model = Model::new(
             k1,
             k2,
@@ -530,14 +577,18 @@ impl ScenarioSpec {
             Vector2::new(self.centroid.velocity[0], self.centroid.velocity[1]),
         );
         let observers = (0..n)
-            .map(|i| design_robot(&model, i, q, r[i]).map_err(|source| ScenarioError::Care { robot: i, source }))
+            .map(|i| {
+                design_robot(&model, i, q, r[i])
+                    .map_err(|source| ScenarioError::Care { robot: i, source })
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let mut resolved = self.clone();
         resolved.kind = None;
         resolved.schema = Some(SCHEMA.to_string());
         resolved.observer.r = RSpec::PerRobot(r.clone());
-        resolved.initial_estimates =
-            InitialEstimatesSpec::Explicit(xhat0.iter().map(|v| v.iter().copied().collect()).collect());
+        resolved.initial_estimates = InitialEstimatesSpec::Explicit(
+            xhat0.iter().map(|v| v.iter().copied().collect()).collect(),
+        );
         let scenario = Scenario {
             name: self.name.clone(),
             resolved,
@@ -554,8 +605,10 @@ impl ScenarioSpec {
             observers,
         };
         let report = scenario.theorem1();
-        if !(report.lambda_min > 1e-9) {
-            return Err(ScenarioError::JointlyUnobservable { lambda_min: report.lambda_min });
+        if report.lambda_min.is_nan() || report.lambda_min <= 1e-9 {
+            return Err(ScenarioError::JointlyUnobservable {
+                lambda_min: report.lambda_min,
+            });
         }
         Ok(scenario)
     }

@@ -83,7 +83,13 @@ impl Theorem1Report {
         let dim = model.dim();
         let p_inv: Vec<DMatrix<f64>> = observers
             .iter()
-            .map(|o| o.care.p.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(1, 1, f64::NAN)))
+            .map(|o| {
+                o.care
+                    .p
+                    .clone()
+                    .try_inverse()
+                    .unwrap_or_else(|| DMatrix::from_element(1, 1, f64::NAN))
+            })
             .collect();
         // Ω(∞) block-diagonal part and the δ⁻¹ direction diag(P̄⁻²).
         let base: Vec<DMatrix<f64>> = observers
@@ -95,14 +101,22 @@ impl Theorem1Report {
             })
             .collect();
         let p_inv_sq: Vec<DMatrix<f64>> = p_inv.iter().map(|pi| pi * pi).collect();
-        let zs: Vec<DMatrix<f64>> = observers.iter().map(|o| o.decomposition.z.clone()).collect();
-        let ws: Vec<DMatrix<f64>> = observers.iter().map(|o| o.decomposition.w.clone()).collect();
+        let zs: Vec<DMatrix<f64>> = observers
+            .iter()
+            .map(|o| o.decomposition.z.clone())
+            .collect();
+        let ws: Vec<DMatrix<f64>> = observers
+            .iter()
+            .map(|o| o.decomposition.w.clone())
+            .collect();
         let diag_z = block_diag(&zs);
         let diag_w = block_diag(&ws);
         // D̄ = 1_n ⊗ [D; 0].
         let mut d_bar = DMatrix::zeros(n * dim, n * dim);
         for i in 0..n {
-            d_bar.view_mut((i * dim, 0), (2 * n, n * dim)).copy_from(&model.d);
+            d_bar
+                .view_mut((i * dim, 0), (2 * n, n * dim))
+                .copy_from(&model.d);
         }
         let psi = block_diag(&p_inv) * model.k2 * diag_z.transpose() * &d_bar * &diag_z;
         let omega_inf = block_diag(&base) - (&psi + psi.transpose());
@@ -116,19 +130,32 @@ impl Theorem1Report {
             }
         });
         let ww = diag_w.transpose() * &lc * &diag_w;
-        let lambda_min = if ww.nrows() == 0 { f64::INFINITY } else { min_sym_eigenvalue(&ww) };
+        let lambda_min = if ww.nrows() == 0 {
+            f64::INFINITY
+        } else {
+            min_sym_eigenvalue(&ww)
+        };
         let wz = diag_w.transpose() * &lc * &diag_z;
         let xi = if wz.nrows() == 0 || wz.ncols() == 0 {
             0.0
         } else {
             wz.singular_values().iter().copied().fold(0.0, f64::max)
         };
-        let lam = if lambda_min.is_finite() { lambda_min } else { 1.0 };
+        let lam = if lambda_min.is_finite() {
+            lambda_min
+        } else {
+            1.0
+        };
         let condition24 = zeta_sup > 0.0;
         let condition25_sup = zeta_sup * gamma * lam - gamma * gamma * xi * xi / 4.0;
         let condition25 = condition24 && condition25_sup > 0.0;
         let m_of = |zeta: f64, tau_term: f64| {
-            Matrix2::new(zeta, -gamma * xi / 2.0, -gamma * xi / 2.0, gamma * lam - tau_term)
+            Matrix2::new(
+                zeta,
+                -gamma * xi / 2.0,
+                -gamma * xi / 2.0,
+                gamma * lam - tau_term,
+            )
         };
         let mut witness = None;
         let mut m_matrix = m_of(zeta_sup, 0.0);
@@ -145,8 +172,18 @@ impl Theorem1Report {
                 v *= 2.0;
             }
         }
-        let error_abscissa = spectral_abscissa(&error_system_matrix(model, observers, gamma, ConsensusSign::Eq19));
-        let error_abscissa_eq10 = spectral_abscissa(&error_system_matrix(model, observers, gamma, ConsensusSign::Eq10));
+        let error_abscissa = spectral_abscissa(&error_system_matrix(
+            model,
+            observers,
+            gamma,
+            ConsensusSign::Eq19,
+        ));
+        let error_abscissa_eq10 = spectral_abscissa(&error_system_matrix(
+            model,
+            observers,
+            gamma,
+            ConsensusSign::Eq10,
+        ));
         Self {
             zeta_sup,
             lambda_min,

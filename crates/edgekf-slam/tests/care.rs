@@ -12,7 +12,11 @@ fn care_solutions_are_verified() {
         let c = &ob.care;
         // A backward-stable solve gives a relative residual of a small multiple of r·ε (r ≤ 12 here, ε = 2.2e-16);
         // 1e-13 allows a condition-number factor of ~40.
-        assert!(c.relative_residual < 1e-13, "robot {i}: {}", c.relative_residual);
+        assert!(
+            c.relative_residual < 1e-13,
+            "robot {i}: {}",
+            c.relative_residual
+        );
         assert!(c.min_eig > 0.0, "robot {i}");
         assert!(c.closed_loop_abscissa < 0.0, "robot {i}");
         // Recompute the residual independently from the stored matrices.
@@ -34,7 +38,13 @@ fn printed_care_has_imaginary_axis_eigenvalues() {
         // eigenvalues at 0 each. The tolerance is care::IMAG_AXIS_TOL·‖𝓗‖ (see its justification).
         let c_i = sc.model.landmark_sets[i].len();
         assert_eq!(pc.on_axis, 2 * 2 * c_i, "robot {i}");
-        assert!(pc.closest_eigenvalue.re.abs() < 1e-12 * pc.hamiltonian_norm, "robot {i}");
-        assert!(matches!(pc.result, Err(CareError::ImaginaryAxisEigenvalue { .. })), "robot {i}");
+        assert!(
+            pc.closest_eigenvalue.re.abs() < 1e-12 * pc.hamiltonian_norm,
+            "robot {i}"
+        );
+        assert!(
+            matches!(pc.result, Err(CareError::ImaginaryAxisEigenvalue { .. })),
+            "robot {i}"
+        );
     }
 }

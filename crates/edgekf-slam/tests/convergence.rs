@@ -18,7 +18,11 @@ fn every_estimate_converges_including_unseen_landmarks() {
     assert!((tr.times[last] - 10.0).abs() < 1e-12);
     let e0 = tr.total_error(0);
     let bound = TRANSIENT * e0 * (alpha * tr.times[last]).exp();
-    assert!(tr.total_error(last) < bound, "{} vs {bound}", tr.total_error(last));
+    assert!(
+        tr.total_error(last) < bound,
+        "{} vs {bound}",
+        tr.total_error(last)
+    );
     let (n, m) = (sc.n(), sc.m());
     for i in 0..n {
         let e_init = tr.error(0, i);
@@ -28,7 +32,10 @@ fn every_estimate_converges_including_unseen_landmarks() {
             let init = (e_init[k].powi(2) + e_init[k + 1].powi(2)).sqrt();
             let fin = (e[k].powi(2) + e[k + 1].powi(2)).sqrt();
             // Every landmark error (seen or not) falls below the total-error bound, i.e. by > 10³ from its start.
-            assert!(fin < bound && fin < 1e-3 * init, "robot {i} landmark {l}: {init} → {fin}");
+            assert!(
+                fin < bound && fin < 1e-3 * init,
+                "robot {i} landmark {l}: {init} → {fin}"
+            );
         }
     }
     // Robot 1 never sees landmarks 0 and 4, robot 2 never sees 0, 1, 2: they learn them through consensus.
@@ -49,9 +56,16 @@ fn decay_rate_matches_the_spectral_abscissa() {
     // The slowest mode dominates only asymptotically and the next ones sit at −0.98 and −1.0, so a finite-window
     // rate lies between |α| and about 1.1|α|; ±20% covers that without tuning.
     for (name, r) in [("estimate", est), ("formation", form), ("centroid", cent)] {
-        assert!((r / -alpha - 1.0).abs() < 0.2, "{name}: rate {r} vs |α| = {}", -alpha);
+        assert!(
+            (r / -alpha - 1.0).abs() < 0.2,
+            "{name}: rate {r} vs |α| = {}",
+            -alpha
+        );
     }
     let last = tr.times.len() - 1;
     // Formation and centroid errors are driven only by E through k₂ D E: they end below the estimation bound.
-    assert!(sc.formation_error(&tr.x[last]) < 1e-3 && sc.centroid_error(tr.times[last], &tr.x[last]) < 1e-3);
+    assert!(
+        sc.formation_error(&tr.x[last]) < 1e-3
+            && sc.centroid_error(tr.times[last], &tr.x[last]) < 1e-3
+    );
 }

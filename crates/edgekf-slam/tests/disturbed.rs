@@ -23,9 +23,18 @@ fn errors_bounded_during_and_decaying_after_the_window() {
     // After the window the system is the undisturbed Hurwitz error system: decay at e^{αt} with the same
     // non-normal allowance as in convergence.rs.
     let bound = 10.0 * tr.total_error(k3) * (alpha * (tr.times[kend] - 3.0)).exp();
-    assert!(tr.total_error(kend) < bound, "{} vs {bound}", tr.total_error(kend));
+    assert!(
+        tr.total_error(kend) < bound,
+        "{} vs {bound}",
+        tr.total_error(kend)
+    );
     for k in k3..=kend {
-        assert!(sc.formation_error(&tr.x[k]) < peak && sc.centroid_error(tr.times[k], &tr.x[k]) < peak);
+        assert!(
+            sc.formation_error(&tr.x[k]) < peak && sc.centroid_error(tr.times[k], &tr.x[k]) < peak
+        );
     }
-    assert!(sc.formation_error(&tr.x[kend]) < 1e-3 && sc.centroid_error(tr.times[kend], &tr.x[kend]) < 1e-3);
+    assert!(
+        sc.formation_error(&tr.x[kend]) < 1e-3
+            && sc.centroid_error(tr.times[kend], &tr.x[kend]) < 1e-3
+    );
 }

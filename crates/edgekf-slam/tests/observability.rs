@@ -23,7 +23,11 @@ fn a_h_i_unobservable_and_reduced_pair_observable() {
         assert!((kd.z.transpose() * &sc.model.a * &kd.w).amax() < 1e-12);
         assert!((&sc.model.h[i] * &kd.w).amax() < 1e-12);
         let t = nalgebra::DMatrix::from_columns(
-            &kd.z.column_iter().chain(kd.w.column_iter()).map(|c| c.into_owned()).collect::<Vec<_>>(),
+            &kd.z
+                .column_iter()
+                .chain(kd.w.column_iter())
+                .map(|c| c.into_owned())
+                .collect::<Vec<_>>(),
         );
         assert!((t.transpose() * &t - nalgebra::DMatrix::<f64>::identity(dim, dim)).amax() < 1e-12);
         // The unobservable subspace is exactly the landmarks outside M_i (the §6 permutation form).
@@ -31,7 +35,10 @@ fn a_h_i_unobservable_and_reduced_pair_observable() {
         for k in 0..dim {
             let unseen = k >= 2 * n && !sc.model.landmark_sets[i].contains(&((k - 2 * n) / 2));
             let expect = if unseen { 1.0 } else { 0.0 };
-            assert!((proj[(k, k)] - expect).abs() < 1e-12, "robot {i}, coordinate {k}");
+            assert!(
+                (proj[(k, k)] - expect).abs() < 1e-12,
+                "robot {i}, coordinate {k}"
+            );
         }
     }
 }
@@ -39,7 +46,8 @@ fn a_h_i_unobservable_and_reduced_pair_observable() {
 #[test]
 fn decomposition_works_for_a_non_permutation_model() {
     // A generic model: the observable subspace is not spanned by coordinate vectors.
-    let a = nalgebra::DMatrix::from_row_slice(3, 3, &[-1.0, 1.0, 1.0, 0.0, -2.0, 0.0, 0.0, 0.0, -2.0]);
+    let a =
+        nalgebra::DMatrix::from_row_slice(3, 3, &[-1.0, 1.0, 1.0, 0.0, -2.0, 0.0, 0.0, 0.0, -2.0]);
     let h = nalgebra::DMatrix::from_row_slice(1, 3, &[1.0, 0.0, 0.0]);
     // x2 and x3 enter x1' identically with the same dynamics, so only x2 + x3 is observable.
     let kd = kalman_decomposition(&a, &h);

@@ -38,7 +38,11 @@ fn small_q_satisfies_both_conditions_with_a_witness() {
 fn plus_one_over_delta_breaks_the_lyapunov_bound() {
     let sc = common::scenario(common::FIG3);
     let r = sc.theorem1();
-    let blocks: Vec<_> = sc.observers.iter().map(|o| &o.a11 - &o.k_bar * &o.h_bar).collect();
+    let blocks: Vec<_> = sc
+        .observers
+        .iter()
+        .map(|o| &o.a11 - &o.k_bar * &o.h_bar)
+        .collect();
     let total: usize = blocks.iter().map(|b| b.nrows()).sum();
     let mut f = nalgebra::DMatrix::zeros(total, total);
     let mut off = 0;
@@ -48,23 +52,36 @@ fn plus_one_over_delta_breaks_the_lyapunov_bound() {
     }
     let vdot = |e: &DVector<f64>, w: &DVector<f64>| -> f64 {
         let pf = &r.p_inv * &f;
-        (e.transpose() * (&pf + pf.transpose()) * e)[0] + 2.0 * (e.transpose() * &r.psi * e)[0]
+        (e.transpose() * (&pf + pf.transpose()) * e)[0]
+            + 2.0 * (e.transpose() * &r.psi * e)[0]
             + 2.0 * (e.transpose() * &r.p_inv * w)[0]
     };
     let delta = 0.7;
     let e = DVector::from_fn(total, |k, _| ((k * 7 + 3) % 11) as f64 / 11.0 - 0.4);
     let w = &r.p_inv * &e / delta;
-    let bound = |plus: bool| -(e.transpose() * r.omega(delta, plus) * &e)[0] + delta * w.norm_squared();
+    let bound =
+        |plus: bool| -(e.transpose() * r.omega(delta, plus) * &e)[0] + delta * w.norm_squared();
     let v = vdot(&e, &w);
     // Young's inequality is tight at this w: with −1/δ the bound holds with equality (up to roundoff, 1e-9 of
     // the terms' size ~10²), with +1/δ it is exceeded by 2δ⁻¹‖P̄⁻¹e‖².
-    assert!(v <= bound(false) + 1e-9 * v.abs().max(1.0), "{v} vs {}", bound(false));
+    assert!(
+        v <= bound(false) + 1e-9 * v.abs().max(1.0),
+        "{v} vs {}",
+        bound(false)
+    );
     let gap = v - bound(true);
-    assert!(gap > 0.0 && (gap - 2.0 / delta * (&r.p_inv * &e).norm_squared()).abs() < 1e-9 * gap, "{gap}");
+    assert!(
+        gap > 0.0 && (gap - 2.0 / delta * (&r.p_inv * &e).norm_squared()).abs() < 1e-9 * gap,
+        "{gap}"
+    );
     // For arbitrary (e, w) the corrected bound holds.
     for s in 0..20 {
-        let e = DVector::from_fn(total, |k, _| (((k + 1) * (s + 3) * 37) % 101) as f64 / 50.0 - 1.0);
-        let w = DVector::from_fn(total, |k, _| (((k + 5) * (s + 1) * 53) % 97) as f64 / 48.0 - 1.0);
+        let e = DVector::from_fn(total, |k, _| {
+            (((k + 1) * (s + 3) * 37) % 101) as f64 / 50.0 - 1.0
+        });
+        let w = DVector::from_fn(total, |k, _| {
+            (((k + 5) * (s + 1) * 53) % 97) as f64 / 48.0 - 1.0
+        });
         let b = -(e.transpose() * r.omega(delta, false) * &e)[0] + delta * w.norm_squared();
         assert!(vdot(&e, &w) <= b + 1e-9 * b.abs().max(1.0));
     }
