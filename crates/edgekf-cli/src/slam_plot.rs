@@ -148,7 +148,8 @@ pub fn paths(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
     Ok(())
 }
 
-/// Smallest value drawn on the log axis; exact zeros (e.g. errors with exact initial estimates) sit on it.
+/// Lowest possible bottom of the log axis; exact zeros (e.g. errors with exact initial estimates) sit on the
+/// axis bottom, which is a third of the smallest positive value plotted but not below this.
 const FLOOR: f64 = 1e-12;
 
 /// Error curves on a log scale: each robot's `‖x̂_i − x‖`, the formation and centroid errors.
@@ -166,27 +167,19 @@ pub fn errors(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
             .zip(&tr.times)
             .map(|(x, &t)| sc.centroid_error(t, x))
             .collect();
-    let top = est
-        .iter()
-        .flatten()
-        .chain(&form)
-        .chain(&cent)
-        .copied()
-        .fold(FLOOR * 10.0, f64::max)
-        * 3.0;
+    let all = || est.iter().flatten().chain(&form).chain(&cent).copied();
+    let floor = (all().filter(|v| *v > 0.0).fold(f64::INFINITY, f64::min) / 3.0).clamp(FLOOR, 1e-3);
+    let top = all().fold(floor * 10.0, f64::max) * 3.0;
     let tmax = *tr.times.last().unwrap_or(&1.0);
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            format!(
-                "{}: errors (values below {FLOOR:e} drawn at {FLOOR:e})",
-                sc.name
-            ),
+            format!("{}: errors (exact zeros drawn at the axis bottom)", sc.name),
             ("sans-serif", 22),
         )
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(70)
-        .build_cartesian_2d(0.0..tmax, (FLOOR..top).log_scale())?;
+        .build_cartesian_2d(0.0..tmax, (floor..top).log_scale())?;
     chart
         .configure_mesh()
         .x_desc("time t (s)")
@@ -199,13 +192,13 @@ pub fn errors(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
         let grey = RGBColor(220, 220, 220);
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(d.start, FLOOR), (d.end, top)],
+                [(d.start, floor), (d.end, top)],
                 grey.filled(),
             )))?
             .label("disturbance window")
             .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], grey.filled()));
     }
-    let clamp = |v: f64| v.max(FLOOR);
+    let clamp = |v: f64| v.max(floor);
     for (i, e) in est.iter().enumerate() {
         let colour = robot_colour(i);
         chart

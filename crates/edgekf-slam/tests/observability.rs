@@ -55,3 +55,30 @@ fn decomposition_works_for_a_non_permutation_model() {
     let w = kd.w.column(0);
     assert!(w[0].abs() < 1e-12 && (w[1] + w[2]).abs() < 1e-12);
 }
+
+/// The control law of eqs. (3)–(4) applied directly equals the compact closed loop of eq. (14),
+/// `A x + B u + d` with `u = 1 ⊗ (ṗ_c* + k₁ p_c*) + k₂(𝓛_f ⊗ I)P*` (with the dot restored) and `d = −k₂[D E; 0]`.
+#[test]
+fn control_law_equals_compact_closed_loop() {
+    let sc = common::scenario(common::FIG3);
+    let (n, dim) = (sc.n(), sc.model.dim());
+    let x = nalgebra::DVector::from_fn(dim, |k, _| ((k * 13 + 5) % 17) as f64 / 3.0 - 2.0);
+    let xhat: Vec<nalgebra::DVector<f64>> = (0..n)
+        .map(|i| {
+            nalgebra::DVector::from_fn(dim, |k, _| ((k * 7 + 11 * i + 1) % 19) as f64 / 4.0 - 2.0)
+        })
+        .collect();
+    let t = 1.37;
+    let refs: Vec<&[f64]> = xhat.iter().map(|v| v.as_slice()).collect();
+    let direct = sc.model.control(t, x.as_slice(), &refs);
+    let e = nalgebra::DVector::from_fn(n * dim, |r, _| xhat[r / dim][r % dim] - x[r % dim]);
+    let compact = &sc.model.a * &x + sc.model.input(t) - {
+        let mut d = nalgebra::DVector::zeros(dim);
+        d.rows_mut(0, 2 * n)
+            .copy_from(&(&sc.model.d * &e * sc.model.k2));
+        d
+    };
+    // Entries are O(10); the two forms sum the same terms in a different order: 1e-12 is roundoff room.
+    assert!((direct - compact.rows(0, 2 * n)).amax() < 1e-12);
+    assert!(compact.rows(2 * n, dim - 2 * n).amax() < 1e-15);
+}
