@@ -8,6 +8,7 @@ mod bench;
 mod io;
 mod plot;
 mod registry;
+mod slam;
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -137,7 +138,16 @@ fn dispatch(cli: Cli) -> Result<()> {
                 .with_context(|| format!("cannot read {}", scenario.display()))?;
             let source = scenario.display().to_string();
             match io::kind_of(&text) {
-                io::Kind::Slam => bail!("{source}: SLAM scenarios are not available in this build"),
+                io::Kind::Slam => {
+                    if over.runs.is_some()
+                        || over.steps.is_some()
+                        || over.seed.is_some()
+                        || over.every.is_some()
+                    {
+                        bail!("{source}: --runs, --steps, --seed and --every apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
+                    }
+                    slam::run_text(&source, &text, &out)?;
+                }
                 io::Kind::Filters => {
                     let sc = io::load_scenario(&source, &text, scenario.parent())?;
                     let sc = apply_overrides(sc, &over).with_context(|| source.clone())?;
@@ -217,6 +227,9 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
         }
     }
     let pool = pool(over.threads)?;
+    let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
+        .into_iter()
+        .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
     // Check every scenario before running any, so a bad flag fails at once.
     let mut files: Vec<(&str, Scenario)> = Vec::new();
     for e in &entries {
@@ -241,9 +254,14 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
             sc.runs, sc.steps, sim_time
         );
     }
+    for e in &slams {
+        let dir = out.join(e.name);
+        slam::run_text(e.file, e.text, &dir)?;
+        eprintln!("{:<16} {}", e.name, dir.display());
+    }
     eprintln!(
         "reproduced {} figure(s) in {:.2?}",
-        entries.len(),
+        entries.len() + slams.len(),
         start.elapsed()
     );
     Ok(())

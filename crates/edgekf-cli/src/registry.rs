@@ -13,7 +13,7 @@ pub struct Entry {
     pub file: &'static str,
     /// The scenario text (embedded at build time, so `reproduce` works from any directory).
     pub text: &'static str,
-    /// Plot file stems of this figure (empty for non-filter studies, which draw their own).
+    /// Plot file stems of this figure (empty for SLAM studies, which draw their own).
     pub plots: &'static [&'static str],
 }
 
@@ -29,6 +29,8 @@ const FIG46: (&str, &str) = scenario!("thesis-fig4.6.toml");
 const FIG48: (&str, &str) = scenario!("thesis-fig4.8.toml");
 const FIG49: (&str, &str) = scenario!("thesis-fig4.9.toml");
 const FILTERS: (&str, &str) = scenario!("eusipco.toml");
+const SLAM: (&str, &str) = scenario!("slam-fig3.toml");
+const SLAM_DIST: (&str, &str) = scenario!("slam-disturbed.toml");
 
 macro_rules! entry {
     ($name:literal, $desc:literal, $sc:expr, [$($p:literal),*]) => {
@@ -121,6 +123,18 @@ pub const ENTRIES: &[Entry] = &[
         "thesis Fig. 5.3: Procrustes error",
         FILTERS,
         ["thesis-fig5.3"]
+    ),
+    entry!(
+        "slam-fig3",
+        "Guo et al. IFAC 2020 Fig. 3: distributed localization, mapping and formation (§6)",
+        SLAM,
+        []
+    ),
+    entry!(
+        "slam-disturbed",
+        "Guo et al. §6 with bounded L² disturbances on [1, 3] s",
+        SLAM_DIST,
+        []
     ),
 ];
 
