@@ -49,6 +49,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             label: None,
             samples: None,
             prior_var: Some(1e-3),
+            p_fail: None,
         }),
         EstimatorEntry::Name("rkf".into()),
         EstimatorEntry::Name("jrkf".into()),

@@ -136,12 +136,17 @@ pub fn metrics_csv(res: &Results) -> String {
     s
 }
 
-/// `paths.csv`: positions of the recorded run, `estimator,step,time,agent,x,y[,z]`.
+/// `paths.csv`: positions and inputs of the recorded run,
+/// `estimator,step,time,agent,x,y[,z],ux,uy[,uz]`.
 pub fn paths_csv(res: &Results, dim: usize, agents: usize) -> String {
     let axes = ["x", "y", "z"];
     let mut s = String::from("estimator,step,time,agent");
     for a in axes.iter().take(dim) {
         s.push(',');
+        s.push_str(a);
+    }
+    for a in axes.iter().take(dim) {
+        s.push_str(",u");
         s.push_str(a);
     }
     s.push('\n');
@@ -151,6 +156,9 @@ pub fn paths_csv(res: &Results, dim: usize, agents: usize) -> String {
                 let _ = write!(s, "{label},{step},{},{i}", step as f64 * res.dt);
                 for d in 0..dim {
                     let _ = write!(s, ",{}", res.paths[e][k * agents * dim + i * dim + d]);
+                }
+                for d in 0..dim {
+                    let _ = write!(s, ",{}", res.inputs[e][k * agents * dim + i * dim + d]);
                 }
                 s.push('\n');
             }

@@ -57,6 +57,24 @@ enum Command {
         #[command(flatten)]
         over: Overrides,
     },
+    /// Fit the AR(p) input model of `rkf-ar` / `rkf-commless` from trial runs (Yule–Walker).
+    FitAr {
+        /// Scenario file (its estimators are simulated; the fit uses one of them).
+        scenario: PathBuf,
+        /// AR order p.
+        #[arg(long, default_value_t = 1)]
+        order: usize,
+        /// First step of the fitting window (the thesis's model is stationary, so skip the
+        /// transient if you want a steady-state model).
+        #[arg(long, default_value_t = 1)]
+        from: usize,
+        /// Label of the estimator whose closed loop generates the inputs (default: `rkf` if
+        /// present, else the first).
+        #[arg(long)]
+        estimator: Option<String>,
+        #[command(flatten)]
+        over: Overrides,
+    },
     /// Measure closed-loop speed per estimator and the wall time of reproducing the figures.
     Bench(bench::BenchArgs),
 }
@@ -174,8 +192,115 @@ fn dispatch(cli: Cli) -> Result<()> {
             let out = out.expect("clap requires --out without --list");
             reproduce(&names, &out, &over)
         }
+        Command::FitAr {
+            scenario,
+            order,
+            from,
+            estimator,
+            over,
+        } => fit_ar(&scenario, order, from, estimator.as_deref(), &over),
         Command::Bench(args) => bench::run(&args),
     }
+}
+
+fn fit_ar(
+    path: &Path,
+    order: usize,
+    from: usize,
+    label: Option<&str>,
+    over: &Overrides,
+) -> Result<()> {
+    if order == 0 {
+        bail!("flag `--order`: must be at least 1");
+    }
+    let text =
+        fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let source = path.display().to_string();
+    let sc = io::load_scenario(&source, &text, path.parent())?;
+    let sc = apply_overrides(sc, over).with_context(|| source.clone())?;
+    if from == 0 || from + order > sc.steps {
+        bail!(
+            "flag `--from`: must lie in 1..={} for {} steps and order {order}",
+            sc.steps - order,
+            sc.steps
+        );
+    }
+    let e = match label {
+        Some(l) => sc
+            .estimators
+            .iter()
+            .position(|d| d.label == l)
+            .with_context(|| {
+                format!("flag `--estimator`: `{l}` is not an estimator label of {source}")
+            })?,
+        None => sc
+            .estimators
+            .iter()
+            .position(|d| d.label == "rkf")
+            .unwrap_or(0),
+    };
+    let pool = pool(over.threads)?;
+    let opt = sim::Options {
+        input_lags: order,
+        input_from: from,
+    };
+    let total = (sc.runs * sc.steps) as u64;
+    let p = Progress::new(total, "fit-ar");
+    let res = pool.install(|| sim::run_with(&sc, &p, opt));
+    p.0.finish_and_clear();
+    let acov = &res.input_acov[e];
+    let mut coeffs = vec![vec![0.0; acov.len()]; order];
+    let mut noise = Vec::new();
+    println!(
+        "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{}`,",
+        sc.estimators[e].label
+    );
+    println!(
+        "# {} runs × {} agents, steps {from}..={} of {}, seed {}",
+        sc.runs,
+        sc.framework.agents(),
+        sc.steps,
+        source,
+        sc.seed
+    );
+    for (d, r) in acov.iter().enumerate() {
+        let (a, v) = edgekf::estimate::ar::yule_walker(r).with_context(|| {
+            format!("coordinate {d}: the inputs are identically zero; nothing to fit")
+        })?;
+        let rho: Vec<String> = r.iter().map(|x| format!("{:.4}", x / r[0])).collect();
+        println!(
+            "# coordinate {d}: r(0) = {:.6e} (m/s)², autocorrelation [{}]",
+            r[0],
+            rho.join(", ")
+        );
+        for (l, c) in a.iter().enumerate() {
+            coeffs[l][d] = *c;
+        }
+        noise.push(v);
+    }
+    println!("[comm.ar]");
+    let rows: Vec<String> = coeffs
+        .iter()
+        .map(|c| {
+            format!(
+                "[{}]",
+                c.iter()
+                    .map(|v| format!("{v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+        .collect();
+    println!("coeffs = [{}]", rows.join(", "));
+    println!(
+        "noise_var = [{}]",
+        noise
+            .iter()
+            .map(|v| format!("{v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
 }
 
 fn apply_overrides(sc: Scenario, over: &Overrides) -> Result<Scenario> {

@@ -67,6 +67,7 @@ pub fn render(dir: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Resu
         .unwrap_or_else(|| res.labels.clone());
     match spec.kind.as_str() {
         "metric" => metric_plot(&tmp, spec, res, &labels)?,
+        "inputs" => inputs_plot(&tmp, spec, sc, res, &labels)?,
         _ => paths_plot(&tmp, spec, sc, res, &labels)?,
     }
     std::fs::rename(&tmp, dir.join(format!("{}.png", spec.file)))
@@ -224,6 +225,86 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
             .draw()
             .map_err(draw_err)?;
     }
+    root.present().map_err(draw_err)?;
+    Ok(())
+}
+
+fn inputs_plot(
+    path: &Path,
+    spec: &PlotSpec,
+    sc: &Scenario,
+    res: &Results,
+    labels: &[String],
+) -> Result<()> {
+    let (n, d) = (sc.framework.agents(), sc.framework.dim());
+    let agent = spec.agent.unwrap_or(0);
+    let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
+    let tmax = *t.last().unwrap_or(&1.0);
+    let mut curves = Vec::new();
+    for l in labels {
+        let e = res
+            .labels
+            .iter()
+            .position(|x| x == l)
+            .ok_or_else(|| anyhow!("no estimator `{l}`"))?;
+        for c in 0..d {
+            let v: Vec<f64> = (0..t.len())
+                .map(|k| res.inputs[e][k * n * d + agent * d + c])
+                .collect();
+            curves.push((format!("{l}: u_{}", ["x", "y", "z"][c]), v));
+        }
+    }
+    let (lo, hi) = curves
+        .iter()
+        .flat_map(|(_, v)| v.iter())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    let pad = 0.05 * (hi - lo).max(1e-12);
+    let root = BitMapBackend::new(path, (1100, 620)).into_drawing_area();
+    root.fill(&WHITE).map_err(draw_err)?;
+    let title = if spec.title.is_empty() {
+        "control input".to_string()
+    } else {
+        spec.title.clone()
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{title}  (agent {agent}, run {})", sc.paths_run),
+            ("sans-serif", 24),
+        )
+        .margin(16)
+        .x_label_area_size(56)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..tmax, (lo - pad)..(hi + pad))
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("time [s]")
+        .y_desc("control input u [m/s]")
+        .label_style(("sans-serif", 16))
+        .axis_desc_style(("sans-serif", 18))
+        .draw()
+        .map_err(draw_err)?;
+    for (k, (l, v)) in curves.iter().enumerate() {
+        let c = colour(k);
+        chart
+            .draw_series(LineSeries::new(
+                t.iter().copied().zip(v.iter().copied()),
+                c.stroke_width(1),
+            ))
+            .map_err(draw_err)?
+            .label(l.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 16))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(draw_err)?;
     root.present().map_err(draw_err)?;
     Ok(())
 }

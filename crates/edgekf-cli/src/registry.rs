@@ -29,6 +29,9 @@ const FIG46: (&str, &str) = scenario!("thesis-fig4.6.toml");
 const FIG48: (&str, &str) = scenario!("thesis-fig4.8.toml");
 const FIG49: (&str, &str) = scenario!("thesis-fig4.9.toml");
 const FILTERS: (&str, &str) = scenario!("eusipco.toml");
+const FIG61: (&str, &str) = scenario!("thesis-fig6.1.toml");
+const FIG62: (&str, &str) = scenario!("thesis-fig6.2.toml");
+const FIG63: (&str, &str) = scenario!("thesis-fig6.3.toml");
 const SLAM: (&str, &str) = scenario!("slam-fig3.toml");
 const SLAM_DIST: (&str, &str) = scenario!("slam-disturbed.toml");
 
@@ -123,6 +126,24 @@ pub const ENTRIES: &[Entry] = &[
         "thesis Fig. 5.3: Procrustes error",
         FILTERS,
         ["thesis-fig5.3"]
+    ),
+    entry!(
+        "thesis-fig6.1",
+        "thesis Fig. 6.1: one realization of an agent's control input (RKF loop)",
+        FIG61,
+        ["thesis-fig6.1"]
+    ),
+    entry!(
+        "thesis-fig6.2",
+        "thesis Fig. 6.2: random link failures, AR(1) prediction, P_fail in {0, .25, .5, .75, 1}, u = 0 baseline",
+        FIG62,
+        ["thesis-fig6.2"]
+    ),
+    entry!(
+        "thesis-fig6.3",
+        "thesis Fig. 6.3: no communication (Wiener prediction) vs u = 0 baseline vs clairvoyant",
+        FIG63,
+        ["thesis-fig6.3"]
     ),
     entry!(
         "slam-fig3",

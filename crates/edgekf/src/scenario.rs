@@ -6,6 +6,7 @@
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
+use crate::estimate::ar::ArModel;
 use crate::estimate::EstimatorKind;
 use crate::framework::{Framework, FrameworkError};
 use crate::linalg::psd_factor;
@@ -158,6 +159,19 @@ impl Default for ControlSpec {
     }
 }
 
+/// Communication between neighbours (thesis chapter 6).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommSpec {
+    /// Probability that a directed link loses the neighbour's current input, per step
+    /// (`rkf-ar`'s default; each `rkf-ar` entry may override it).
+    pub p_fail: f64,
+    /// The AR(p) model of the inputs used by `rkf-ar` and (order 1) `rkf-commless`; fit it with
+    /// `edgekf fit-ar`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ar: Option<ArModel>,
+}
+
 /// One estimator: a bare name, or a table with options.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
@@ -183,6 +197,9 @@ pub struct EstimatorTable {
     /// MMSE prior variance σ²_prior.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prior_var: Option<f64>,
+    /// `rkf-ar`: failure probability per link and step (default: `comm.p_fail`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p_fail: Option<f64>,
 }
 
 /// A figure to draw from the results (the CLI draws; the library only carries the request).
@@ -191,7 +208,8 @@ pub struct EstimatorTable {
 pub struct PlotSpec {
     /// File stem of the image.
     pub file: String,
-    /// `metric` (mean ± 1σ over time) or `paths` (agent paths of the recorded run).
+    /// `metric` (mean ± 1σ over time), `paths` (agent paths of the recorded run) or `inputs`
+    /// (one agent's input over time in the recorded run).
     pub kind: String,
     /// For `metric`: the metric name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -205,6 +223,9 @@ pub struct PlotSpec {
     /// Estimator labels to show (default: all).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimators: Option<Vec<String>>,
+    /// For `inputs`: the agent whose input is drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub agent: Option<usize>,
 }
 
 /// A scenario file as written by a person (TOML).
@@ -230,6 +251,9 @@ pub struct ScenarioSpec {
     /// Gains.
     #[serde(default)]
     pub control: ControlSpec,
+    /// Communication: link failures and the input model.
+    #[serde(default)]
+    pub comm: CommSpec,
     /// Estimators to compare (paired: same initial positions and noise).
     pub estimators: Vec<EstimatorEntry>,
     /// Figures.
@@ -295,6 +319,9 @@ pub struct Resolved {
     /// Leader gain (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub leader_gain: Option<f64>,
+    /// Communication model (default: perfect links, no AR model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub comm: Option<CommSpec>,
     /// Figures.
     #[serde(default)]
     pub plots: Vec<PlotSpec>,
@@ -348,6 +375,10 @@ pub struct Scenario {
     pub follower_gain: f64,
     /// Leader gain.
     pub leader_gain: f64,
+    /// Default link failure probability.
+    pub p_fail: f64,
+    /// AR model of the inputs.
+    pub ar: Option<ArModel>,
     /// Figures.
     pub plots: Vec<PlotSpec>,
 }
@@ -385,6 +416,7 @@ fn framework_error(key: &str, e: FrameworkError) -> ScenarioError {
 fn estimator_defs(
     entries: &[EstimatorTable],
     samples: usize,
+    p_fail: f64,
     key: &str,
 ) -> Result<Vec<EstimatorDef>, ScenarioError> {
     if entries.is_empty() {
@@ -393,7 +425,8 @@ fn estimator_defs(
     let mut defs: Vec<EstimatorDef> = Vec::with_capacity(entries.len());
     for (k, t) in entries.iter().enumerate() {
         let key = format!("{key}[{k}]");
-        let kind = EstimatorKind::parse(&t.kind, t.prior_var).map_err(|m| err(&key, m))?;
+        let kind = EstimatorKind::parse(&t.kind, t.prior_var, t.p_fail, p_fail)
+            .map_err(|m| err(&key, m))?;
         let s = match kind {
             EstimatorKind::None => 1,
             _ => t.samples.unwrap_or(samples),
@@ -506,12 +539,16 @@ impl Scenario {
                     label: None,
                     samples: None,
                     prior_var: None,
+                    p_fail: None,
                 },
                 EstimatorEntry::Table(t) => t.clone(),
             })
             .collect();
-        let estimators = estimator_defs(&tables, s.samples_per_step, "estimators")?;
+        check_comm(&spec.comm, dim, "comm.")?;
+        let estimators =
+            estimator_defs(&tables, s.samples_per_step, spec.comm.p_fail, "estimators")?;
         check_model(&estimators, &meas_cov, "noise.sigma_v")?;
+        check_ar_needed(&estimators, &spec.comm, "comm.ar")?;
         check_gains(
             spec.control.follower_gain,
             spec.control.leader_gain,
@@ -535,6 +572,8 @@ impl Scenario {
             estimators,
             follower_gain: spec.control.follower_gain,
             leader_gain: spec.control.leader_gain,
+            p_fail: spec.comm.p_fail,
+            ar: spec.comm.ar.clone(),
             plots: spec.plots.clone(),
         };
         sc.check_plots()?;
@@ -654,11 +693,15 @@ impl Scenario {
                     label: None,
                     samples: None,
                     prior_var: None,
+                    p_fail: None,
                 })
                 .collect(),
         };
-        let estimators = estimator_defs(&tables, r.samples_per_step, "estimators")?;
+        let comm = r.comm.clone().unwrap_or_default();
+        check_comm(&comm, dim, "comm.")?;
+        let estimators = estimator_defs(&tables, r.samples_per_step, comm.p_fail, "estimators")?;
         check_model(&estimators, &meas_cov, "meas_cov")?;
+        check_ar_needed(&estimators, &comm, "comm.ar")?;
         let fg = r.follower_gain.unwrap_or(1.0);
         let lg = r.leader_gain.unwrap_or(1.0);
         check_gains(fg, lg, "")?;
@@ -680,6 +723,8 @@ impl Scenario {
             estimators,
             follower_gain: fg,
             leader_gain: lg,
+            p_fail: comm.p_fail,
+            ar: comm.ar,
             plots: r.plots.clone(),
         };
         sc.check_plots()?;
@@ -717,6 +762,7 @@ impl Scenario {
                         label: Some(e.label.clone()),
                         samples: Some(e.samples),
                         prior_var: e.kind.prior_var(),
+                        p_fail: e.kind.p_fail(),
                     })
                     .collect(),
             ),
@@ -725,6 +771,10 @@ impl Scenario {
             paths_run: Some(self.paths_run),
             follower_gain: Some(self.follower_gain),
             leader_gain: Some(self.leader_gain),
+            comm: (self.p_fail > 0.0 || self.ar.is_some()).then(|| CommSpec {
+                p_fail: self.p_fail,
+                ar: self.ar.clone(),
+            }),
             plots: self.plots.clone(),
         }
     }
@@ -793,10 +843,19 @@ impl Scenario {
                     }
                 }
                 "paths" => {}
+                "inputs" => {
+                    let n = self.framework.agents();
+                    if p.agent.is_none_or(|a| a >= n) {
+                        return Err(err(
+                            &format!("{key}.agent"),
+                            format!("an `inputs` plot needs an agent in 0..{n}"),
+                        ));
+                    }
+                }
                 other => {
                     return Err(err(
                         &format!("{key}.kind"),
-                        format!("unknown plot kind `{other}` (metric or paths)"),
+                        format!("unknown plot kind `{other}` (metric, paths or inputs)"),
                     ))
                 }
             }
@@ -816,6 +875,50 @@ impl Scenario {
         }
         Ok(())
     }
+}
+
+fn check_comm(c: &CommSpec, dim: usize, prefix: &str) -> Result<(), ScenarioError> {
+    if !(0.0..=1.0).contains(&c.p_fail) {
+        return Err(err(
+            &format!("{prefix}p_fail"),
+            format!("must lie in [0, 1], got {}", c.p_fail),
+        ));
+    }
+    if let Some(ar) = &c.ar {
+        ar.check(dim).map_err(|m| err(&format!("{prefix}ar"), m))?;
+    }
+    Ok(())
+}
+
+/// `rkf-ar` and `rkf-commless` need the AR model; `rkf-commless` an AR(1).
+fn check_ar_needed(defs: &[EstimatorDef], comm: &CommSpec, key: &str) -> Result<(), ScenarioError> {
+    for d in defs {
+        if d.kind.needs_ar() {
+            match &comm.ar {
+                None => {
+                    return Err(err(
+                        key,
+                        format!(
+                            "`{}` needs an AR model of the inputs (fit one with `edgekf fit-ar`)",
+                            d.label
+                        ),
+                    ))
+                }
+                Some(ar) if d.kind == EstimatorKind::RkfCommless && ar.order() != 1 => {
+                    return Err(err(
+                        key,
+                        format!(
+                            "`{}` uses an AR(1) model; this one has order {}",
+                            d.label,
+                            ar.order()
+                        ),
+                    ))
+                }
+                Some(_) => {}
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The CRKF runs in information form and needs every `R_ij` positive definite.

@@ -2,8 +2,9 @@
 //!
 //! A run is a pure function of (scenario, seed, run index): run `r` draws from its own
 //! Xoshiro256++ stream seeded from `(seed, r)`, in a fixed order — initial positions (N·D normals),
-//! then per step the measurement noise (M·D normals, only when R ≠ 0) and the process noise
-//! (N·D normals, only when Q ≠ 0). All estimators of a run share these draws (common random
+//! then per step the measurement noise (M·D normals, only when R ≠ 0), the process noise
+//! (N·D normals, only when Q ≠ 0) and the link-failure draws (M uniforms, only when an estimator
+//! has a failure probability strictly between 0 and 1). All estimators of a run share these draws (common random
 //! numbers: paired comparisons), and the T-sample mean is drawn directly as
 //! `ȳ = x + chol(R/T) η` (exact, DESIGN.md). Runs are split into contiguous chunks processed in
 //! parallel (rayon); inside a chunk the runs advance in lockstep so each filter computes its gain
@@ -61,6 +62,12 @@ pub struct Results {
     pub per_run: Vec<[Vec<f64>; 2]>,
     /// Positions of the recorded run: `paths[est][report * N*D + i*D + d]`.
     pub paths: Vec<Vec<f64>>,
+    /// Inputs `u_k` of the recorded run, laid out like `paths`.
+    pub inputs: Vec<Vec<f64>>,
+    /// With [`Options::input_lags`]: the inputs' autocovariance pooled over agents, runs and the
+    /// steps from [`Options::input_from`] on, `input_acov[est][d][τ] = Σ u_k[d] u_{k−τ}[d] / n`
+    /// (the biased Yule–Walker estimator: sums over `k − τ ≥ from`, one count `n` for all lags).
+    pub input_acov: Vec<Vec<Vec<f64>>>,
     /// Number of runs.
     pub runs: usize,
 }
@@ -96,18 +103,36 @@ struct Chunk {
     values: Vec<[Vec<f64>; 2]>,
     cov_trace: Vec<Vec<f64>>,
     paths: Option<Vec<Vec<f64>>>,
+    inputs: Option<Vec<Vec<f64>>>,
+    /// `[est][(τ * D + d) * len + local run]` sums of `u_k[d] u_{k−τ}[d]` over agents and steps.
+    acov: Vec<Vec<f64>>,
+    acov_count: f64,
+}
+
+/// Extra outputs of a study.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Options {
+    /// Accumulate the inputs' autocovariance up to this lag (0: off).
+    pub input_lags: usize,
+    /// First step of the autocovariance window (1-based).
+    pub input_from: usize,
 }
 
 /// Runs the Monte Carlo study of a checked scenario on the current rayon pool.
 pub fn run(sc: &Scenario, obs: &dyn Observer) -> Results {
+    run_with(sc, obs, Options::default())
+}
+
+/// [`run`] with extra outputs.
+pub fn run_with(sc: &Scenario, obs: &dyn Observer, opt: Options) -> Results {
     match sc.framework.dim() {
-        1 => run_dim::<1>(sc, obs),
-        2 => run_dim::<2>(sc, obs),
-        _ => run_dim::<3>(sc, obs),
+        1 => run_dim::<1>(sc, obs, opt),
+        2 => run_dim::<2>(sc, obs, opt),
+        _ => run_dim::<3>(sc, obs, opt),
     }
 }
 
-fn run_dim<const D: usize>(sc: &Scenario, obs: &dyn Observer) -> Results {
+fn run_dim<const D: usize>(sc: &Scenario, obs: &dyn Observer, opt: Options) -> Results {
     let runs = sc.runs;
     let chunks = rayon::current_num_threads().clamp(1, runs);
     let ranges: Vec<(usize, usize)> = (0..chunks)
@@ -116,7 +141,7 @@ fn run_dim<const D: usize>(sc: &Scenario, obs: &dyn Observer) -> Results {
         .collect();
     let mut parts: Vec<Chunk> = ranges
         .par_iter()
-        .map(|&(a, b)| run_chunk::<D>(sc, a, b, obs))
+        .map(|&(a, b)| run_chunk::<D>(sc, a, b, obs, opt))
         .collect();
     parts.sort_by_key(|c| c.start);
     let report = sc.report_steps();
@@ -163,6 +188,31 @@ fn run_dim<const D: usize>(sc: &Scenario, obs: &dyn Observer) -> Results {
         }
         series.push(s);
     }
+    // Autocovariance: per-run sums reduced in run order, so any thread count gives the same bits.
+    let mut input_acov = Vec::new();
+    if opt.input_lags > 0 {
+        let count: f64 = parts.iter().map(|p| p.acov_count).sum();
+        for e in 0..ne {
+            let mut per = vec![vec![0.0; opt.input_lags + 1]; D];
+            for (d, row) in per.iter_mut().enumerate() {
+                for (tau, v) in row.iter_mut().enumerate() {
+                    let mut sum = 0.0;
+                    for part in &parts {
+                        let len = part.acov[e].len() / ((opt.input_lags + 1) * D);
+                        for r in 0..len {
+                            sum += part.acov[e][(tau * D + d) * len + r];
+                        }
+                    }
+                    *v = sum / count;
+                }
+            }
+            input_acov.push(per);
+        }
+    }
+    let inputs = parts
+        .iter_mut()
+        .find_map(|p| p.inputs.take())
+        .unwrap_or_default();
     let paths = parts
         .iter_mut()
         .find_map(|p| p.paths.take())
@@ -174,6 +224,8 @@ fn run_dim<const D: usize>(sc: &Scenario, obs: &dyn Observer) -> Results {
         series,
         per_run,
         paths,
+        inputs,
+        input_acov,
         runs,
     }
 }
@@ -189,7 +241,13 @@ struct Lane<const D: usize> {
     y: Vec<f64>,
 }
 
-fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn Observer) -> Chunk {
+fn run_chunk<const D: usize>(
+    sc: &Scenario,
+    start: usize,
+    end: usize,
+    obs: &dyn Observer,
+    opt: Options,
+) -> Chunk {
     let fw = &sc.framework;
     let g = fw.graph();
     let (n, m) = (g.agents(), g.num_edges());
@@ -267,7 +325,20 @@ fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn 
         .contains(&sc.paths_run)
         .then(|| sc.paths_run - start);
     let mut paths: Option<Vec<Vec<f64>>> = record.map(|_| vec![Vec::with_capacity(nr * nd); ne]);
+    let mut inputs: Option<Vec<Vec<f64>>> = record.map(|_| vec![Vec::with_capacity(nr * nd); ne]);
+    let lags = opt.input_lags;
+    let mut acov: Vec<Vec<f64>> =
+        vec![vec![0.0; if lags > 0 { (lags + 1) * D * runs } else { 0 }]; ne];
+    let mut acov_count = 0.0;
+    // Past inputs per lane, newest first (only with `input_lags`).
+    let mut uhist: Vec<Vec<Vec<f64>>> =
+        vec![vec![vec![0.0; if lags > 0 { nd * runs } else { 0 }]; lags + 1]; ne];
 
+    let link_active = sc
+        .estimators
+        .iter()
+        .any(|e| e.kind.p_fail().is_some_and(|p| p > 0.0 && p < 1.0));
+    let mut link = vec![0.0; if link_active { m * runs } else { 0 }];
     let mut eta = vec![0.0; md * runs];
     let mut xi = vec![0.0; nd * runs];
     let mut w = vec![0.0; nd * runs];
@@ -288,6 +359,11 @@ fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn 
             if q_active {
                 for a in 0..nd {
                     xi[a * runs + lr] = rng.sample(StandardNormal);
+                }
+            }
+            if link_active {
+                for e in 0..m {
+                    link[e * runs + lr] = rng.random::<f64>();
                 }
             }
         }
@@ -334,6 +410,7 @@ fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn 
                 du: &lane.du,
                 y: &lane.y,
                 x_true: &lane.x,
+                link: &link,
                 dt,
             });
             if is_report {
@@ -355,6 +432,36 @@ fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn 
                 }
             }
             lane.ctrl.apply(lane.est.estimates(), &mut lane.u);
+            if is_report {
+                if let (Some(rr), Some(p)) = (record, inputs.as_mut()) {
+                    p[li].extend((0..nd).map(|a| lane.u[a * runs + rr]));
+                }
+            }
+            if lags > 0 {
+                let h = &mut uhist[li];
+                h.rotate_right(1);
+                h[0].copy_from_slice(&lane.u);
+                // Biased (Yule–Walker) estimator: r(τ) sums u_k u_{k−τ} over k − τ ≥ from and
+                // every r(τ) is divided by the same count, so the Toeplitz matrix stays PSD.
+                if k >= opt.input_from {
+                    for tau in (0..=lags).filter(|&t| k >= opt.input_from + t) {
+                        for a in 0..nd {
+                            let d = a % D;
+                            let acc = &mut acov[li][(tau * D + d) * runs..(tau * D + d + 1) * runs];
+                            let (now, past) = (
+                                &h[0][a * runs..(a + 1) * runs],
+                                &h[tau][a * runs..(a + 1) * runs],
+                            );
+                            for ((s, x), y) in acc.iter_mut().zip(now).zip(past) {
+                                *s += x * y;
+                            }
+                        }
+                    }
+                    if li == 0 {
+                        acov_count += (n * runs) as f64;
+                    }
+                }
+            }
             for ((zv, uv), wv) in lane.z.iter_mut().zip(&lane.u).zip(&w) {
                 *zv += dt * uv + wv;
             }
@@ -376,5 +483,8 @@ fn run_chunk<const D: usize>(sc: &Scenario, start: usize, end: usize, obs: &dyn 
         values,
         cov_trace,
         paths,
+        inputs,
+        acov,
+        acov_count,
     }
 }

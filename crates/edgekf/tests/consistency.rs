@@ -63,6 +63,7 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
         du: &zeros_e,
         y: &zeros_e,
         x_true: &zeros_e,
+        link: &[],
         dt: sc.dt,
     };
     // Edge-space CRKF (9d)–(9g) in the full M·D = 120 dimensions, Joseph form.
@@ -109,7 +110,7 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
         assert!(c.clone().symmetric_eigen().eigenvalues.min() > 0.0);
     }
     assert_eq!(
-        EstimatorKind::parse("crkf", None).unwrap(),
+        EstimatorKind::parse("crkf", None, None, 0.0).unwrap(),
         EstimatorKind::Crkf
     );
 }

@@ -42,15 +42,23 @@ impl ArModel {
         }
         for (l, a) in self.coeffs.iter().enumerate() {
             if a.len() != dim || a.iter().any(|v| !v.is_finite()) {
-                return Err(format!("`coeffs[{l}]` must have dim = {dim} finite entries"));
+                return Err(format!(
+                    "`coeffs[{l}]` must have dim = {dim} finite entries"
+                ));
             }
         }
-        if self.noise_var.len() != dim || self.noise_var.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-            return Err(format!("`noise_var` must have dim = {dim} finite entries ≥ 0"));
+        if self.noise_var.len() != dim
+            || self.noise_var.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+        {
+            return Err(format!(
+                "`noise_var` must have dim = {dim} finite entries ≥ 0"
+            ));
         }
         for d in 0..dim {
             let r = self.autocovariance_1d(d, self.order());
-            if r.as_ref().is_none_or(|r| !(r[0] > 0.0 || self.noise_var[d] == 0.0)) {
+            if r.as_ref()
+                .is_none_or(|r| !(r[0] > 0.0 || self.noise_var[d] == 0.0))
+            {
                 return Err(format!("the AR model of coordinate {d} is not stationary"));
             }
         }
@@ -89,7 +97,12 @@ impl ArModel {
     /// # Panics
     /// For a non-stationary model ([`ArModel::check`] rejects those).
     pub fn autocovariance(&self, dim: usize, max_lag: usize) -> Vec<Vec<f64>> {
-        (0..dim).map(|d| self.autocovariance_1d(d, max_lag).expect("checked stationary")).collect()
+        (0..dim)
+            .map(|d| {
+                self.autocovariance_1d(d, max_lag)
+                    .expect("checked stationary")
+            })
+            .collect()
     }
 }
 
@@ -125,7 +138,10 @@ mod tests {
 
     #[test]
     fn autocovariance_of_ar1_is_closed_form() {
-        let m = ArModel { coeffs: vec![vec![0.8, -0.5]], noise_var: vec![2.0, 1.0] };
+        let m = ArModel {
+            coeffs: vec![vec![0.8, -0.5]],
+            noise_var: vec![2.0, 1.0],
+        };
         m.check(2).unwrap();
         let r = m.autocovariance(2, 3);
         for (d, (a, s)) in [(0.8f64, 2.0), (-0.5f64, 1.0)].iter().enumerate() {
@@ -134,7 +150,12 @@ mod tests {
                 assert!((r[d][t] - want).abs() < 1e-12, "{d} {t}");
             }
         }
-        assert!(ArModel { coeffs: vec![vec![1.2]], noise_var: vec![1.0] }.check(1).is_err());
+        assert!(ArModel {
+            coeffs: vec![vec![1.2]],
+            noise_var: vec![1.0]
+        }
+        .check(1)
+        .is_err());
     }
 
     /// Yule–Walker recovers the coefficients of a synthetic AR(2) process within sampling error:
@@ -142,7 +163,7 @@ mod tests {
     /// (asymptotic AR(2) theory); 5 standard errors bound the check.
     #[test]
     fn yule_walker_recovers_a_synthetic_ar2() {
-        let (a1, a2, s2) = (0.6, -0.3, 0.5);
+        let (a1, a2, s2): (f64, f64, f64) = (0.6, -0.3, 0.5);
         let n = 100_000;
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
         let mut x = vec![0.0; n + 200];
@@ -151,13 +172,21 @@ mod tests {
             x[t] = a1 * x[t - 1] + a2 * x[t - 2] + s2.sqrt() * e;
         }
         let x = &x[200..];
-        let r: Vec<f64> = (0..=2).map(|l| x[l..].iter().zip(x).map(|(a, b)| a * b).sum::<f64>() / n as f64).collect();
+        let r: Vec<f64> = (0..=2)
+            .map(|l| x[l..].iter().zip(x).map(|(a, b)| a * b).sum::<f64>() / n as f64)
+            .collect();
         let (a, v) = yule_walker(&r).unwrap();
         let se = ((1.0 - a2 * a2) / n as f64).sqrt();
-        assert!((a[0] - a1).abs() < 5.0 * se && (a[1] - a2).abs() < 5.0 * se, "{a:?}");
+        assert!(
+            (a[0] - a1).abs() < 5.0 * se && (a[1] - a2).abs() < 5.0 * se,
+            "{a:?}"
+        );
         assert!((v - s2).abs() < 5.0 * s2 * (2.0 / n as f64).sqrt(), "{v}");
         // Round trip: the model's own autocovariance gives back the model exactly.
-        let m = ArModel { coeffs: vec![vec![a1], vec![a2]], noise_var: vec![s2] };
+        let m = ArModel {
+            coeffs: vec![vec![a1], vec![a2]],
+            noise_var: vec![s2],
+        };
         let (b, w) = yule_walker(&m.autocovariance_1d(0, 2).unwrap()).unwrap();
         assert!((b[0] - a1).abs() < 1e-12 && (b[1] - a2).abs() < 1e-12 && (w - s2).abs() < 1e-12);
     }

@@ -14,6 +14,10 @@
 //! | `jrkf` | [`jrkf`] | EUSIPCO (14a)–(14g) = thesis (5.19)–(5.25) |
 //! | `crkf` | [`crkf`] | EUSIPCO (9a)–(9g) = thesis (5.6)–(5.12) |
 //! | `oracle` | [`oracle`] | the true edges (noiseless reference) |
+//! | `rkf-ar` | [`rkf_ar`] | thesis (6.2)–(6.10), Alg. 8: lost inputs predicted by AR(p) |
+//! | `rkf-zero` | [`rkf`] | thesis §6.3 benchmark: neighbour input taken as 0 |
+//! | `rkf-commless` | [`rkf_commless`] | thesis (6.11)–(6.18), Alg. 9: no communication |
+//! | `jrkf-ar` | [`jrkf_ar`] | EUSIPCO (14) with the predicted inputs of thesis (6.2)–(6.10) |
 //!
 //! # T measurements per step
 //! With `H = 1_T ⊗ I_D` and `R̃ = I_T ⊗ R_ij`, `Hᵀ R̃⁻¹ H = T R_ij⁻¹` and `Hᵀ R̃⁻¹ y = T R_ij⁻¹ ȳ`
@@ -24,12 +28,16 @@
 //! Write a module with a struct implementing [`Estimator`], add a variant to [`EstimatorKind`]
 //! and to [`AnyEstimator`], and a line to the table above and to the README.
 
+pub mod ar;
 pub mod crkf;
 pub mod jrkf;
+pub mod jrkf_ar;
 pub mod mle;
 pub mod mmse;
 pub mod oracle;
 pub mod rkf;
+pub mod rkf_ar;
+pub mod rkf_commless;
 
 use nalgebra::{DMatrix, SMatrix};
 
@@ -47,6 +55,10 @@ pub struct StepInput<'a> {
     pub y: &'a [f64],
     /// True edge states `x_k` (MD rows); only the `oracle` reads them.
     pub x_true: &'a [f64],
+    /// One uniform draw per directed edge and run (M rows), shared by all estimators: a link
+    /// fails this step when its draw is below the estimator's `P_fail`. Empty when no estimator
+    /// of the scenario has `0 < P_fail < 1`.
+    pub link: &'a [f64],
     /// Δt.
     pub dt: f64,
 }
@@ -83,14 +95,34 @@ pub enum EstimatorKind {
     Crkf,
     /// True edges.
     Oracle,
+    /// RKF with AR prediction of inputs lost with probability `p_fail`.
+    RkfAr {
+        /// Per-step, per-link failure probability.
+        p_fail: f64,
+    },
+    /// RKF ignoring the neighbour's input.
+    RkfZero,
+    /// JRKF with AR prediction of inputs lost with probability `p_fail`.
+    JrkfAr {
+        /// Per-step, per-link failure probability.
+        p_fail: f64,
+    },
+    /// RKF without communication (Wiener prediction from edge estimates).
+    RkfCommless,
 }
 
 impl EstimatorKind {
-    /// Parses a name (with the MMSE prior variance when given).
+    /// Parses a name with its options (the MMSE prior variance; the failure probability of
+    /// `rkf-ar`, defaulting to `default_p_fail`).
     ///
     /// # Errors
-    /// A message for unknown names or a missing/invalid MMSE prior.
-    pub fn parse(name: &str, prior_var: Option<f64>) -> Result<Self, String> {
+    /// A message for unknown names or a missing/invalid option.
+    pub fn parse(
+        name: &str,
+        prior_var: Option<f64>,
+        p_fail: Option<f64>,
+        default_p_fail: f64,
+    ) -> Result<Self, String> {
         let k = match name {
             "none" => Self::None,
             "mle" => Self::Mle,
@@ -105,14 +137,32 @@ impl EstimatorKind {
             "jrkf" => Self::Jrkf,
             "crkf" => Self::Crkf,
             "oracle" => Self::Oracle,
+            "rkf-ar" | "jrkf-ar" => {
+                let p = p_fail.unwrap_or(default_p_fail);
+                if !(0.0..=1.0).contains(&p) {
+                    return Err(format!("p_fail must lie in [0, 1], got {p}"));
+                }
+                if name == "rkf-ar" {
+                    Self::RkfAr { p_fail: p }
+                } else {
+                    Self::JrkfAr { p_fail: p }
+                }
+            }
+            "rkf-zero" => Self::RkfZero,
+            "rkf-commless" => Self::RkfCommless,
             other => {
                 return Err(format!(
-                    "unknown estimator `{other}` (known: none, mle, mmse, rkf, jrkf, crkf, oracle)"
+                    "unknown estimator `{other}` (known: none, mle, mmse, rkf, jrkf, crkf, oracle, rkf-ar, rkf-zero, rkf-commless, jrkf-ar)"
                 ))
             }
         };
         if prior_var.is_some() && !matches!(k, Self::Mmse { .. }) {
             return Err(format!("`prior_var` applies to mmse only, not {name}"));
+        }
+        if p_fail.is_some() && k.p_fail().is_none() {
+            return Err(format!(
+                "`p_fail` applies to rkf-ar and jrkf-ar only, not {name}"
+            ));
         }
         Ok(k)
     }
@@ -127,7 +177,27 @@ impl EstimatorKind {
             Self::Jrkf => "jrkf",
             Self::Crkf => "crkf",
             Self::Oracle => "oracle",
+            Self::RkfAr { .. } => "rkf-ar",
+            Self::RkfZero => "rkf-zero",
+            Self::RkfCommless => "rkf-commless",
+            Self::JrkfAr { .. } => "jrkf-ar",
         }
+    }
+
+    /// The failure probability of `rkf-ar`, if any.
+    pub fn p_fail(&self) -> Option<f64> {
+        match self {
+            Self::RkfAr { p_fail } | Self::JrkfAr { p_fail } => Some(*p_fail),
+            _ => None,
+        }
+    }
+
+    /// Whether the estimator predicts inputs with the AR model.
+    pub fn needs_ar(&self) -> bool {
+        matches!(
+            self,
+            Self::RkfAr { .. } | Self::JrkfAr { .. } | Self::RkfCommless
+        )
     }
 
     /// The MMSE prior variance, if any.
@@ -150,8 +220,33 @@ impl EstimatorKind {
         match *self {
             Self::None | Self::Mle => AnyEstimator::Mle(mle::Mle::new(&m, runs)),
             Self::Mmse { prior_var } => AnyEstimator::Mmse(mmse::Mmse::new(&m, prior_var, runs)),
-            Self::Rkf => AnyEstimator::Rkf(rkf::Rkf::new(&m, runs)),
+            Self::Rkf => {
+                AnyEstimator::Rkf(rkf::Rkf::new(&m, runs, rkf::NeighbourInput::Known, sc.dt))
+            }
+            Self::RkfZero => {
+                AnyEstimator::Rkf(rkf::Rkf::new(&m, runs, rkf::NeighbourInput::Zero, sc.dt))
+            }
+            Self::RkfAr { p_fail } => AnyEstimator::RkfAr(rkf_ar::RkfAr::new(
+                &m,
+                runs,
+                p_fail,
+                sc.ar.as_ref().expect("checked"),
+                sc.dt,
+            )),
+            Self::RkfCommless => AnyEstimator::RkfCommless(rkf_commless::RkfCommless::new(
+                &m,
+                runs,
+                sc.ar.as_ref().expect("checked"),
+                sc.dt,
+            )),
             Self::Jrkf => AnyEstimator::Jrkf(jrkf::Jrkf::new(&m, runs)),
+            Self::JrkfAr { p_fail } => AnyEstimator::JrkfAr(jrkf_ar::JrkfAr::new(
+                &m,
+                runs,
+                p_fail,
+                sc.ar.as_ref().expect("checked"),
+                sc.dt,
+            )),
             Self::Crkf => AnyEstimator::Crkf(crkf::Crkf::new(&m, runs)),
             Self::Oracle => AnyEstimator::Oracle(oracle::Oracle::new(&m, runs)),
         }
@@ -167,6 +262,9 @@ pub enum AnyEstimator<const D: usize> {
     Jrkf(jrkf::Jrkf),
     Crkf(crkf::Crkf),
     Oracle(oracle::Oracle),
+    RkfAr(rkf_ar::RkfAr<D>),
+    RkfCommless(rkf_commless::RkfCommless<D>),
+    JrkfAr(jrkf_ar::JrkfAr),
 }
 
 macro_rules! dispatch {
@@ -178,6 +276,9 @@ macro_rules! dispatch {
             AnyEstimator::Jrkf($e) => $body,
             AnyEstimator::Crkf($e) => $body,
             AnyEstimator::Oracle($e) => $body,
+            AnyEstimator::RkfAr($e) => $body,
+            AnyEstimator::RkfCommless($e) => $body,
+            AnyEstimator::JrkfAr($e) => $body,
         }
     };
 }

@@ -11,9 +11,12 @@
 //! - (5g)/(4.32) `Σ_{k|k} = (I − K) Σ_{k|k−1}`, computed in Joseph form
 //!   `(I − K) Σ (I − K)ᵀ + K W Kᵀ` so it stays symmetric PSD.
 //!
-//! The gain is the same for every run: it is computed once per step, and frozen once the
-//! covariance has converged to rounding level (no entry moves by more than `8 ε max|Σ|`; the
-//! recursion then only adds rounding noise, see [`crate::linalg::converged`]).
+//! The gain is the same for every run: it is computed once per step, and each edge's covariance
+//! is frozen once it has converged to rounding level (no entry moves by more than `8 ε max|Σ|`;
+//! the recursion then only adds rounding noise, see [`crate::linalg::converged`]).
+//!
+//! The same module serves `rkf-zero` (thesis §6.3 benchmark): the neighbour's input is taken as
+//! `û^j = 0`, with no covariance inflation — biased whenever the neighbour moves.
 //!
 //! # References
 //! van der Marel & Rajan, EUSIPCO 2022, eq. (5); van der Marel, MSc thesis 2021, §4.5, Alg. 5.
@@ -23,7 +26,7 @@ use nalgebra::SMatrix;
 use super::{to_static, EdgeModel, Estimator, StepInput};
 use crate::linalg::batch_gemv_acc;
 
-type Mat<const D: usize> = SMatrix<f64, D, D>;
+pub(crate) type Mat<const D: usize> = SMatrix<f64, D, D>;
 
 /// One Kalman covariance/gain step in Joseph form: returns the posterior covariance and the gain.
 ///
@@ -39,98 +42,166 @@ pub fn joseph_step<const D: usize>(prior: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D
     (0.5 * (post + post.transpose()), k)
 }
 
+/// The covariance recursion of one edge, frozen once converged to rounding level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeCov<const D: usize> {
+    /// Posterior covariance `Σ_{k|k}`.
+    pub sigma: Mat<D>,
+    /// Gain `K_k`.
+    pub gain: Mat<D>,
+    /// Converged: the next step would change nothing beyond rounding.
+    pub frozen: bool,
+}
+
+impl<const D: usize> EdgeCov<D> {
+    /// Starts at `Σ_{0|0}`.
+    pub fn new(sigma0: Mat<D>) -> Self {
+        Self {
+            sigma: sigma0,
+            gain: Mat::<D>::zeros(),
+            frozen: false,
+        }
+    }
+
+    /// One predict–update covariance step with process covariance `q` (plus `extra`, an input
+    /// prediction's covariance, which unfreezes) and measurement covariance `w`.
+    #[inline]
+    pub fn step(&mut self, q: &Mat<D>, w: &Mat<D>, extra: Option<&Mat<D>>) {
+        if self.frozen && extra.is_none() {
+            return;
+        }
+        let mut prior = self.sigma + q;
+        if let Some(x) = extra {
+            prior += x;
+        }
+        let (post, k) = joseph_step(&prior, w);
+        let tol = 8.0 * f64::EPSILON * self.sigma.amax();
+        self.frozen = extra.is_none()
+            && post
+                .iter()
+                .zip(self.sigma.iter())
+                .all(|(a, b)| (a - b).abs() <= tol);
+        self.sigma = post;
+        self.gain = k;
+    }
+}
+
+/// Whether the predictor knows the neighbour's input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NeighbourInput {
+    /// Communicated (`rkf`).
+    Known,
+    /// Taken as zero (`rkf-zero`).
+    Zero,
+}
+
 /// The RKF on every directed edge.
 #[derive(Debug, Clone)]
 pub struct Rkf<const D: usize> {
     runs: usize,
+    dt: f64,
+    dim_edges: Vec<(usize, usize)>,
+    input: NeighbourInput,
     q: Vec<Mat<D>>,
     w: Vec<Mat<D>>,
     sigma0: Vec<Mat<D>>,
-    sigma: Vec<Mat<D>>,
+    covs: Vec<EdgeCov<D>>,
     gains: Vec<f64>,
-    frozen: bool,
     x: Vec<f64>,
     innov: Vec<f64>,
-    trace: f64,
 }
 
 impl<const D: usize> Rkf<D> {
     /// For `runs` runs.
-    pub fn new(m: &EdgeModel, runs: usize) -> Self {
+    pub fn new(m: &EdgeModel, runs: usize, input: NeighbourInput, dt: f64) -> Self {
         let ne = m.num_edges();
         let q = (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect();
         let w = m.w.iter().map(to_static::<D>).collect();
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
-        let trace = sigma0.iter().map(|s| s.trace()).sum();
         Self {
             runs,
+            dt,
+            dim_edges: m.edges.clone(),
+            input,
             q,
             w,
-            sigma: sigma0.clone(),
+            covs: sigma0.iter().map(|s| EdgeCov::new(*s)).collect(),
             sigma0,
             gains: vec![0.0; ne * D * D],
-            frozen: false,
             x: vec![0.0; ne * D * runs],
             innov: vec![0.0; D * runs],
-            trace,
         }
     }
 
     /// Posterior covariance of edge `e`.
     pub fn covariance(&self, e: usize) -> &Mat<D> {
-        &self.sigma[e]
+        &self.covs[e].sigma
     }
+}
 
-    fn covariance_step(&mut self) {
-        let mut fixed = true;
-        let mut trace = 0.0;
-        for e in 0..self.sigma.len() {
-            let prior = self.sigma[e] + self.q[e];
-            let (post, k) = joseph_step(&prior, &self.w[e]);
-            let tol = 8.0 * f64::EPSILON * self.sigma[e].amax();
-            fixed &= post
-                .iter()
-                .zip(self.sigma[e].iter())
-                .all(|(a, b)| (a - b).abs() <= tol);
-            self.sigma[e] = post;
-            trace += post.trace();
-            let g = &mut self.gains[e * D * D..(e + 1) * D * D];
-            for a in 0..D {
-                for b in 0..D {
-                    g[a * D + b] = k[(a, b)];
-                }
-            }
-        }
-        self.trace = trace;
-        self.frozen = fixed;
+/// `x ← x + du; x ← x + K (y − x)` for one edge and every run (the KF mean update with one gain).
+#[inline]
+pub(crate) fn edge_update<const D: usize>(
+    k: &[f64],
+    x: &mut [f64],
+    du: &[f64],
+    y: &[f64],
+    innov: &mut [f64],
+    runs: usize,
+) {
+    for ((xi, dui), (yi, v)) in x.iter_mut().zip(du).zip(y.iter().zip(innov.iter_mut())) {
+        *xi += dui;
+        *v = yi - *xi;
     }
+    batch_gemv_acc(k, D, innov, x, runs);
 }
 
 impl<const D: usize> Estimator for Rkf<D> {
     fn reset(&mut self) {
-        self.sigma.clone_from(&self.sigma0);
-        self.trace = self.sigma.iter().map(|s| s.trace()).sum();
-        self.frozen = false;
+        for (c, s) in self.covs.iter_mut().zip(&self.sigma0) {
+            *c = EdgeCov::new(*s);
+        }
         self.x.fill(0.0);
     }
 
     fn step(&mut self, input: &StepInput<'_>) {
-        if !self.frozen {
-            self.covariance_step();
-        }
         let block = D * self.runs;
-        for (e, k) in self.gains.chunks_exact(D * D).enumerate() {
-            let span = e * block..(e + 1) * block;
-            let x = &mut self.x[span.clone()];
-            for ((xi, dui), (yi, v)) in x
-                .iter_mut()
-                .zip(&input.du[span.clone()])
-                .zip(input.y[span].iter().zip(self.innov.iter_mut()))
-            {
-                *xi += dui;
-                *v = yi - *xi;
+        for (e, c) in self.covs.iter_mut().enumerate() {
+            c.step(&self.q[e], &self.w[e], None);
+            let g = &mut self.gains[e * D * D..(e + 1) * D * D];
+            for a in 0..D {
+                for b in 0..D {
+                    g[a * D + b] = c.gain[(a, b)];
+                }
             }
-            batch_gemv_acc(k, D, &self.innov, x, self.runs);
+        }
+        let r = self.runs;
+        for e in 0..self.covs.len() {
+            let span = e * block..(e + 1) * block;
+            let k = &self.gains[e * D * D..(e + 1) * D * D];
+            match self.input {
+                NeighbourInput::Known => edge_update::<D>(
+                    k,
+                    &mut self.x[span.clone()],
+                    &input.du[span.clone()],
+                    &input.y[span],
+                    &mut self.innov,
+                    r,
+                ),
+                NeighbourInput::Zero => {
+                    // Δt u_i only: reuse `innov` as the increment buffer, then update in place.
+                    let i = self.dim_edges[e].0;
+                    let ui = &input.u_prev[i * block..(i + 1) * block];
+                    let x = &mut self.x[span.clone()];
+                    for (xi, u) in x.iter_mut().zip(ui) {
+                        *xi += self.dt * u;
+                    }
+                    for ((v, yi), xi) in self.innov.iter_mut().zip(&input.y[span]).zip(x.iter()) {
+                        *v = yi - xi;
+                    }
+                    batch_gemv_acc(k, D, &self.innov, x, r);
+                }
+            }
         }
     }
 
@@ -139,6 +210,6 @@ impl<const D: usize> Estimator for Rkf<D> {
     }
 
     fn cov_trace(&self) -> f64 {
-        self.trace
+        self.covs.iter().map(|c| c.sigma.trace()).sum()
     }
 }

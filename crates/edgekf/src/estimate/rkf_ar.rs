@@ -58,7 +58,11 @@ impl<const D: usize> RkfAr<D> {
             dt,
             p_fail,
             edges: m.edges.clone(),
-            coeffs: ar.coeffs.iter().map(|a| std::array::from_fn(|d| a[d])).collect(),
+            coeffs: ar
+                .coeffs
+                .iter()
+                .map(|a| std::array::from_fn(|d| a[d]))
+                .collect(),
             extra,
             q: (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect(),
             w: m.w.iter().map(to_static::<D>).collect(),
@@ -81,7 +85,8 @@ impl<const D: usize> Estimator for RkfAr<D> {
     fn reset(&mut self) {
         self.covs.clear();
         for s in &self.sigma0 {
-            self.covs.extend(std::iter::repeat_n(EdgeCov::new(*s), self.runs));
+            self.covs
+                .extend(std::iter::repeat_n(EdgeCov::new(*s), self.runs));
         }
         self.trace = self.sigma0.iter().map(|s| s.trace()).sum();
         self.x.fill(0.0);

@@ -36,6 +36,7 @@ pub fn hexagon(
             ..Default::default()
         },
         control: ControlSpec::default(),
+        comm: Default::default(),
         estimators,
         plots: vec![],
     };
@@ -61,6 +62,7 @@ pub fn table(
         label: Some(label.into()),
         samples,
         prior_var,
+        p_fail: None,
     })
 }
 
