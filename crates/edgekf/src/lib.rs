@@ -3,5 +3,6 @@
 //! Pure computation: no files, no printing, no global random number generator.
 #![warn(missing_docs)]
 
+pub mod design;
 pub mod framework;
 pub mod graph;
