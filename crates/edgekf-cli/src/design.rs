@@ -153,15 +153,17 @@ fn generate(args: &DesignArgs, which: Generator) -> anyhow::Result<Candidate> {
             needs("trilateration")?;
             generators::trilateration(args.agents, args.dim, args.dim + 2, &mut rng)
         }
-        Generator::Random50Sparse => {
-            generators::random50(generators::Density::Sparse, &mut rng)
-        }
+        Generator::Random50Sparse => generators::random50(generators::Density::Sparse, &mut rng),
         Generator::Random50Dense => generators::random50(generators::Density::Dense, &mut rng),
         Generator::Complete => {
             needs("complete")?;
             let extent = (args.agents as f64).powf(1.0 / args.dim as f64);
             let config = generators::random_config(args.agents, args.dim, extent, &mut rng);
-            generators::complete(&format!("complete-{}d-n{}", args.dim, args.agents), args.dim, config)
+            generators::complete(
+                &format!("complete-{}d-n{}", args.dim, args.agents),
+                args.dim,
+                config,
+            )
         }
     })
 }
@@ -237,6 +239,19 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         designed.newton_steps,
         elapsed.as_secs_f64()
     );
+    if method == Method::Yang {
+        let own = f
+            .graph()
+            .links()
+            .iter()
+            .filter(|&&(i, j)| {
+                !candidate.links.contains(&(i, j)) && !candidate.links.contains(&(j, i))
+            })
+            .count();
+        println!(
+            "(the Yang construction designs its own graph: {own} of its links are not candidates)"
+        );
+    }
     report
         .verdict()
         .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;
@@ -284,7 +299,11 @@ fn plot_framework(
         method,
         f.graph().links().len(),
         report.max_eigenvalue() / report.stress_gap(),
-        if f.dim() == 3 { " (x–y projection)" } else { "" }
+        if f.dim() == 3 {
+            " (x–y projection)"
+        } else {
+            ""
+        }
     );
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
@@ -401,7 +420,8 @@ mod tests {
         assert_eq!(file2.edges, file.edges);
         // A flexible input fails with the condition named.
         let mut flex = file.clone();
-        flex.edges.retain(|e| !(e[1] == 9 && e[0] != 4 && e[0] != 8));
+        flex.edges
+            .retain(|e| !(e[1] == 9 && e[0] != 4 && e[0] != 8));
         flex.weights = None;
         let flex_path = dir.join("flex.json");
         fs::write(&flex_path, serde_json::to_string(&flex).unwrap()).unwrap();

@@ -62,7 +62,11 @@ fn every_design_passes_every_check_and_converges() {
             assert!(report.connected() && report.generic() && report.equilibrium() && report.psd());
             assert_eq!(report.rank, f.agents() - f.dim() - 1);
             // Every design is normalised to smallest nonzero eigenvalue 1 (to round-off).
-            assert!((report.stress_gap() - 1.0).abs() < 1e-9, "{}", report.stress_gap());
+            assert!(
+                (report.stress_gap() - 1.0).abs() < 1e-9,
+                "{}",
+                report.stress_gap()
+            );
             // Leaders stay linked (Framework::new verified it); the check names them.
             assert_eq!(f.leaders(), &c.leaders[..]);
 
@@ -73,21 +77,33 @@ fn every_design_passes_every_check_and_converges() {
             let proj = &a * (a.transpose() * &a).try_inverse().unwrap() * a.transpose();
             let limit = &proj * &z0;
             let err = (&z - &limit).amax();
-            assert!(err < 1e-8 * z0.amax(), "{} {m:?}: distance to affine image {err:e}", c.name);
+            assert!(
+                err < 1e-8 * z0.amax(),
+                "{} {m:?}: distance to affine image {err:e}",
+                c.name
+            );
         }
     }
 }
 
 #[test]
 fn sdp_reproduces_the_hexagon_preset_spectrum() {
-    let d = sdp::design(&generators::hexagon_candidate(), &sdp::SdpOptions::default()).unwrap();
+    let d = sdp::design(
+        &generators::hexagon_candidate(),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
     let ours = d.framework.eigenvalues();
     let preset = Framework::hexagon();
     // Spectrum {0 ×3, 1 ×3, 15.7, 51.6 ×3}: the optimal ratio λ_max/λ_min is unique; we ask for
     // agreement to 1e-4 relative (solver stops at 1e-6 relative duality gap; the preset was
     // solved offline to similar accuracy).
     for (a, b) in ours.iter().zip(preset.eigenvalues()) {
-        assert!((a - b).abs() <= 1e-4 * b.abs().max(1.0), "{ours:?} vs {:?}", preset.eigenvalues());
+        assert!(
+            (a - b).abs() <= 1e-4 * b.abs().max(1.0),
+            "{ours:?} vs {:?}",
+            preset.eigenvalues()
+        );
     }
     assert!((ours[9] - 51.6).abs() < 0.05 && (ours[6] - 15.7).abs() < 0.05);
 }
@@ -109,8 +125,16 @@ fn thesis_gap_variant_respects_its_bounds() {
     assert!(r.stress_gap() > 0.0);
     // The best-conditioned design scaled to max |w| = 1 is feasible for this problem, so the
     // optimum must reach at least its gap (up to the solver's 1e-6 relative accuracy).
-    let cond = sdp::design(&generators::hexagon_candidate(), &sdp::SdpOptions::default()).unwrap();
-    let wmax = cond.framework.weights().iter().fold(0.0_f64, |m, w| m.max(w.abs()));
+    let cond = sdp::design(
+        &generators::hexagon_candidate(),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
+    let wmax = cond
+        .framework
+        .weights()
+        .iter()
+        .fold(0.0_f64, |m, w| m.max(w.abs()));
     assert!(r.stress_gap() >= cond.framework.stress_gap() / wmax * (1.0 - 1e-6));
 }
 
@@ -124,9 +148,16 @@ fn three_d_trilateration_and_complete_graphs() {
     }
     // Complete graph: the conditioning optimum is the projector, ratio 1.
     let cfg = generators::random_config(8, 2, 3.0, &mut rng);
-    let d = sdp::design(&generators::complete("k8", 2, cfg), &sdp::SdpOptions::default()).unwrap();
+    let d = sdp::design(
+        &generators::complete("k8", 2, cfg),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
     let ev = d.framework.eigenvalues();
-    assert!((ev[7] - 1.0).abs() < 1e-9 && (ev[3] - 1.0).abs() < 1e-9, "{ev:?}");
+    assert!(
+        (ev[7] - 1.0).abs() < 1e-9 && (ev[3] - 1.0).abs() < 1e-9,
+        "{ev:?}"
+    );
 }
 
 #[test]
@@ -138,14 +169,22 @@ fn sparse_design_drops_links_and_stays_rigid() {
     assert!(kept < c.links.len(), "{kept} of {}", c.links.len());
     assert_eq!(d.candidate_links, c.links.len());
     // Every kept link is a candidate.
-    assert!(d.framework.graph().links().iter().all(|l| c.links.contains(l)));
+    assert!(d
+        .framework
+        .graph()
+        .links()
+        .iter()
+        .all(|l| c.links.contains(l)));
 }
 
 #[test]
 fn yang_builds_a_banded_trilateration_graph() {
     let d = yang::design(&generators::hexagon_candidate()).unwrap();
     let r = CheckReport::from_framework(&d.framework);
-    assert!(matches!(r.trilateration, design::checks::Trilateration::Yes { .. }), "{r}");
+    assert!(
+        matches!(r.trilateration, design::checks::Trilateration::Yes { .. }),
+        "{r}"
+    );
     // Each agent after the first D + 1 links to at most D + 1 agents before it in the order:
     // (D + 1)(D + 2)/2 + (D + 1)(N − D − 2) links at most.
     assert!(d.framework.graph().links().len() <= 3 + 3 * 7);

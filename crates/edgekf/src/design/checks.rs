@@ -169,7 +169,9 @@ pub fn check(
 ) -> Result<CheckReport, DesignError> {
     let n = config.len();
     if !(1..=3).contains(&dim) {
-        return Err(DesignError::Input(format!("dimension must be 1, 2 or 3, got {dim}")));
+        return Err(DesignError::Input(format!(
+            "dimension must be 1, 2 or 3, got {dim}"
+        )));
     }
     if weights.len() != links.len() {
         return Err(DesignError::Input(format!(
@@ -193,7 +195,9 @@ pub fn check(
             )));
         }
         if !w.is_finite() {
-            return Err(DesignError::Input(format!("weight of link ({i}, {j}) is not finite")));
+            return Err(DesignError::Input(format!(
+                "weight of link ({i}, {j}) is not finite"
+            )));
         }
         if w != 0.0 {
             active.push((i.min(j), i.max(j), w));
@@ -223,16 +227,20 @@ pub fn check(
     };
     // Affine span.
     let mut centred = DMatrix::zeros(n, dim);
-    for i in 0..n {
+    for (i, p) in config.iter().enumerate() {
         for d in 0..dim {
-            centred[(i, d)] = config[i][d] - config[0][d];
+            centred[(i, d)] = p[d] - config[0][d];
         }
     }
     let sv = centred.singular_values();
     let smax = sv.max().max(f64::MIN_POSITIVE);
     // Same threshold as Framework::new.
     let affine_span = sv.iter().filter(|&&s| s > 1e-9 * smax).count();
-    let span_ratio = if affine_span == 0 { 0.0 } else { sv.min() / smax };
+    let span_ratio = if affine_span == 0 {
+        0.0
+    } else {
+        sv.min() / smax
+    };
     // Laplacian, spectrum, equilibrium — tolerances as in Framework::new: relative 1e-9 of the
     // spectral scale per agent, far above the ≈ 1e-15 round-off of the eigensolver.
     let mut l = DMatrix::<f64>::zeros(n, n);
@@ -242,7 +250,13 @@ pub fn check(
         l[(i, j)] -= w;
         l[(j, i)] -= w;
     }
-    let mut eigenvalues: Vec<f64> = l.clone().symmetric_eigen().eigenvalues.iter().copied().collect();
+    let mut eigenvalues: Vec<f64> = l
+        .clone()
+        .symmetric_eigen()
+        .eigenvalues
+        .iter()
+        .copied()
+        .collect();
     eigenvalues.sort_by(f64::total_cmp);
     let scale = eigenvalues
         .iter()
@@ -257,7 +271,7 @@ pub fn check(
         .max(1.0);
     let mut equilibrium_residual = 0.0_f64;
     for d in 0..dim {
-        let q = DVector::from_iterator(n, (0..n).map(|i| config[i][d]));
+        let q = DVector::from_iterator(n, config.iter().map(|p| p[d]));
         equilibrium_residual = equilibrium_residual.max((&l * q).amax());
     }
     let equilibrium_tolerance = 1e-9 * scale * pmax * n as f64;
@@ -472,7 +486,11 @@ mod tests {
         let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
         let r = check(2, &cfg, f.graph().links(), &neg).unwrap();
         assert!(!r.psd());
-        assert!(r.verdict().unwrap_err().to_string().contains("not positive semidefinite"));
+        assert!(r
+            .verdict()
+            .unwrap_err()
+            .to_string()
+            .contains("not positive semidefinite"));
         // Collinear points: not generic.
         let line: Vec<Vec<f64>> = (0..10).map(|i| vec![i as f64, 2.0 * i as f64]).collect();
         let r = check(2, &line, f.graph().links(), f.weights()).unwrap();

@@ -52,7 +52,10 @@ fn dist2(a: &[f64], b: &[f64]) -> f64 {
 /// # Panics
 /// If `k < dim + 1` or the configuration has fewer than `dim + 1` points.
 pub fn trilateration_links(config: &[Vec<f64>], dim: usize, k: usize) -> Vec<(usize, usize)> {
-    assert!(k > dim, "a D-trilateration graph needs k ≥ D + 1 earlier neighbours");
+    assert!(
+        k > dim,
+        "a D-trilateration graph needs k ≥ D + 1 earlier neighbours"
+    );
     assert!(config.len() > dim, "need at least D + 1 agents");
     let mut links = Vec::new();
     for i in 0..=dim {

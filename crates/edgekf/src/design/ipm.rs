@@ -60,7 +60,13 @@ struct Lmi {
 
 fn inverse_logdet(s: DMatrix<f64>) -> Option<Lmi> {
     let chol = Cholesky::<f64, Dyn>::new(s)?;
-    let logdet = 2.0 * chol.l_dirty().diagonal().iter().map(|v| v.ln()).sum::<f64>();
+    let logdet = 2.0
+        * chol
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .map(|v| v.ln())
+            .sum::<f64>();
     Some(Lmi {
         w: chol.inverse(),
         logdet,
@@ -298,12 +304,10 @@ pub(crate) fn solve(
     const MAX_NEWTON: usize = 600;
     let nu = problem.nu();
     let mut x = x0;
-    let mut phi = problem
-        .barrier(&x)
-        .ok_or(DesignError::Solver {
-            status: SolverStatus::NumericalBreakdown,
-            iterations: 0,
-        })?;
+    let mut phi = problem.barrier(&x).ok_or(DesignError::Solver {
+        status: SolverStatus::NumericalBreakdown,
+        iterations: 0,
+    })?;
     let mut tau = nu / problem.objective(&x).abs().max(1e-3);
     let mut steps = 0;
     loop {
@@ -315,10 +319,12 @@ pub(crate) fn solve(
                     iterations: steps,
                 });
             }
-            let (dx, dec2) = problem.newton(&x, tau).map_err(|status| DesignError::Solver {
-                status,
-                iterations: steps,
-            })?;
+            let (dx, dec2) = problem
+                .newton(&x, tau)
+                .map_err(|status| DesignError::Solver {
+                    status,
+                    iterations: steps,
+                })?;
             steps += 1;
             if dec2 / 2.0 <= NEWTON_TOL {
                 break;
@@ -330,7 +336,7 @@ pub(crate) fn solve(
                 break;
             }
             prev_dec2 = dec2;
-            let fdx = problem.objective(&dx) ;
+            let fdx = problem.objective(&dx);
             let mut t = 1.0;
             let mut accepted = false;
             while t > 1e-14 {

@@ -29,8 +29,8 @@
 //!   multiagent formation control", IEEE TAC 2019.
 
 pub mod checks;
-mod ipm;
 pub mod generators;
+mod ipm;
 pub mod sdp;
 pub mod sparse;
 pub mod yang;
@@ -59,7 +59,9 @@ pub enum SolverStatus {
 impl std::fmt::Display for SolverStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
-            SolverStatus::NumericalBreakdown => "numerical breakdown (Newton system not positive definite)",
+            SolverStatus::NumericalBreakdown => {
+                "numerical breakdown (Newton system not positive definite)"
+            }
             SolverStatus::MaxIterations => "iteration limit reached",
             SolverStatus::LineSearchFailure => "line search failed",
         })
@@ -111,7 +113,8 @@ pub struct Design {
     pub method: &'static str,
     /// Newton steps of the interior-point solver (0 for closed-form designs).
     pub newton_steps: usize,
-    /// Candidate links offered to the design.
+    /// Candidate links offered to the design (the Yang construction ignores them and designs
+    /// its own graph).
     pub candidate_links: usize,
 }
 
@@ -133,7 +136,9 @@ impl std::str::FromStr for Method {
             "sdp" => Ok(Method::Sdp),
             "yang" => Ok(Method::Yang),
             "sparse" => Ok(Method::Sparse),
-            other => Err(format!("unknown design method {other:?} (sdp, yang, sparse)")),
+            other => Err(format!(
+                "unknown design method {other:?} (sdp, yang, sparse)"
+            )),
         }
     }
 }
@@ -358,7 +363,7 @@ pub(crate) fn finish(
         framework,
         method,
         newton_steps,
-        candidate_links: links.len(),
+        candidate_links: candidate.links.len(),
     })
 }
 

@@ -127,7 +127,11 @@ fn complete_graph_optimum(flat: &[f64], dim: usize, links: &[(usize, usize)]) ->
 /// `[1 P]` (N × (D + 1)).
 fn affine_basis(flat: &[f64], dim: usize) -> nalgebra::DMatrix<f64> {
     let n = flat.len() / dim;
-    nalgebra::DMatrix::from_fn(n, dim + 1, |i, c| if c == 0 { 1.0 } else { flat[i * dim + c - 1] })
+    nalgebra::DMatrix::from_fn(
+        n,
+        dim + 1,
+        |i, c| if c == 0 { 1.0 } else { flat[i * dim + c - 1] },
+    )
 }
 
 /// Designs the weights on the candidate links by the thesis SDP (3.5) (see the module docs for

@@ -55,7 +55,8 @@ impl Default for SparseOptions {
 /// As [`super::sdp::design`]; [`DesignError::Input`] for `slack ≤ 1` or a threshold outside
 /// `(0, 1)`.
 pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, DesignError> {
-    if !(options.slack > 1.0) || !(options.threshold > 0.0 && options.threshold < 1.0) {
+    let valid = options.slack > 1.0 && options.threshold > 0.0 && options.threshold < 1.0;
+    if !valid {
         return Err(DesignError::Input(format!(
             "sparse design needs slack > 1 and 0 < threshold < 1, got {} and {}",
             options.slack, options.threshold
@@ -75,9 +76,8 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     let kappa_start = eig.max() / lmin;
     let kappa_bar = options.slack * kappa0.max(kappa_start);
     let w_start = &w0 * (options.slack.sqrt() / lmin);
-    let is_leader_link = |&(i, j): &(usize, usize)| {
-        candidate.leaders.contains(&i) && candidate.leaders.contains(&j)
-    };
+    let is_leader_link =
+        |&(i, j): &(usize, usize)| candidate.leaders.contains(&i) && candidate.leaders.contains(&j);
     let penalised: Vec<bool> = links.iter().map(|l| !is_leader_link(l)).collect();
     let problem = Problem::new(
         &space,
@@ -90,7 +90,8 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     let npen = penalised.iter().filter(|&&p| p).count();
     let mean_abs = w_start.iter().map(|v| v.abs()).sum::<f64>() / links.len() as f64;
     let mut x0 = DVector::zeros(m + npen);
-    x0.rows_mut(0, m).copy_from(&(space.z.transpose() * &w_start));
+    x0.rows_mut(0, m)
+        .copy_from(&(space.z.transpose() * &w_start));
     let mut k = 0;
     for (l, &p) in penalised.iter().enumerate() {
         if p {
@@ -122,7 +123,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
         match polished {
             Ok((sub, ws, st)) => {
                 steps += st;
-                let mut d = finish(
+                return finish(
                     candidate,
                     &support,
                     ws.as_slice(),
@@ -133,9 +134,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
                         method: "sparse",
                         newton_steps: steps,
                     },
-                )?;
-                d.candidate_links = links.len();
-                return Ok(d);
+                );
             }
             Err(DesignError::NotUniversallyRigid(_) | DesignError::Graph(_)) => {
                 threshold *= 0.1;
@@ -145,7 +144,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     }
     // The ℓ1 weights themselves are a valid stress on all candidates; return them if no
     // thresholded support could be certified.
-    let mut d = finish(
+    finish(
         candidate,
         &links,
         w.as_slice(),
@@ -156,7 +155,5 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
             method: "sparse",
             newton_steps: steps,
         },
-    )?;
-    d.candidate_links = links.len();
-    Ok(d)
+    )
 }

@@ -27,7 +27,9 @@
 
 use nalgebra::DMatrix;
 
-use super::{complement_basis, finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
+use super::{
+    complement_basis, finish, validate, Candidate, Design, DesignError, Finish, StressSpace,
+};
 
 /// Designs graph and weights by the Yang 2019 construction (see the module docs).
 ///
