@@ -18,7 +18,7 @@
 //!
 //! # References
 //! Z. Li, G. Leus, R. T. Rajan, "Fast multiagent formation stabilization with sparse universally
-//! rigid frameworks", EUSIPCO 2025 (ref. [26] of Li & Rajan's GA-RKF paper).
+//! rigid frameworks", EUSIPCO 2025 (ref. \[26\] of Li & Rajan's GA-RKF paper).
 
 use nalgebra::DVector;
 
