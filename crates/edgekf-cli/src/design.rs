@@ -230,15 +230,9 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
     let f = &designed.framework;
     let report = CheckReport::from_framework(f);
     println!("{report}");
-    println!(
-        "method {}: {} of {} candidate links kept (average degree {:.2}), {} Newton steps, {:.3} s",
-        designed.method,
-        f.graph().links().len(),
-        designed.candidate_links,
-        2.0 * f.graph().links().len() as f64 / f.agents() as f64,
-        designed.newton_steps,
-        elapsed.as_secs_f64()
-    );
+    let kept = f.graph().links().len();
+    let degree = 2.0 * kept as f64 / f.agents() as f64;
+    let time = elapsed.as_secs_f64();
     if method == Method::Yang {
         let own = f
             .graph()
@@ -249,7 +243,15 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
             })
             .count();
         println!(
-            "(the Yang construction designs its own graph: {own} of its links are not candidates)"
+            "method yang: designed graph of {kept} links (average degree {degree:.2}; {own} of \
+             them not among the {} candidates), {time:.3} s",
+            designed.candidate_links
+        );
+    } else {
+        println!(
+            "method {}: {kept} of {} candidate links kept (average degree {degree:.2}), {} Newton \
+             steps, {time:.3} s",
+            designed.method, designed.candidate_links, designed.newton_steps
         );
     }
     report
