@@ -265,3 +265,25 @@ fn check_report_matches_framework_verification() {
     let r = design::check(2, &cfg, f.graph().links(), &neg).unwrap();
     assert!(r.equilibrium() && !r.psd());
 }
+
+#[test]
+fn malformed_input_is_an_input_error() {
+    let mut c = generators::hexagon_candidate();
+    c.leaders = vec![0];
+    for m in METHODS {
+        let err = design::design(&c, m).unwrap_err();
+        assert!(matches!(err, DesignError::Input(_)), "{m:?}: {err}");
+    }
+    let mut c = generators::hexagon_candidate();
+    c.config[4] = vec![1.0];
+    assert!(matches!(
+        design::design(&c, Method::Sdp),
+        Err(DesignError::Input(_))
+    ));
+    let c = generators::hexagon_candidate();
+    let err = design::check(2, &c.config, &c.links, &[1.0; 29]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "invalid input: 29 weights given for 30 links"
+    );
+}

@@ -303,6 +303,21 @@ pub(crate) fn validate(candidate: &Candidate) -> Result<Vec<f64>, DesignError> {
         }
         flat.extend_from_slice(p);
     }
+    let leaders = &candidate.leaders;
+    if !(leaders.is_empty() || leaders.len() == dim + 1) {
+        return Err(DesignError::Input(format!(
+            "{} leaders given; rigid formations need none or exactly D + 1 = {}",
+            leaders.len(),
+            dim + 1
+        )));
+    }
+    for (k, &a) in leaders.iter().enumerate() {
+        if a >= n || leaders[..k].contains(&a) {
+            return Err(DesignError::Input(format!(
+                "leader {a} is out of range (agents are 0..{n}) or listed twice"
+            )));
+        }
+    }
     Ok(flat)
 }
 

@@ -224,3 +224,27 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::design::generators;
+    use rand::SeedableRng;
+
+    #[test]
+    fn interior_point_reaches_the_closed_form_on_a_complete_graph() {
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let config = generators::random_config(7, 2, 3.0, &mut rng);
+        let c = generators::complete("k7", 2, config);
+        let flat: Vec<f64> = c.config.iter().flatten().copied().collect();
+        let space = StressSpace::new(&flat, 2, &c.links).unwrap();
+        let (w_ipm, ratio, steps) = best_conditioned(&space, 4).unwrap();
+        assert!(steps > 0);
+        // Optimal ratio 1; the solver stops at relative gap 1e-6 on s = 1/ratio.
+        assert!((ratio - 1.0).abs() < 1e-5, "{ratio}");
+        // Same weights as the projector, up to the scale and the solver accuracy.
+        let w_exact = complete_graph_optimum(&flat, 2, &c.links);
+        let scale = w_exact.dot(&w_ipm) / w_ipm.norm_squared();
+        assert!((&w_ipm * scale - &w_exact).amax() < 1e-4 * w_exact.amax());
+    }
+}
