@@ -2,9 +2,12 @@
 //!
 //! - `edgekf run SCENARIO --out DIR`: one scenario file (TOML, or a resolved `scenario.json`);
 //! - `edgekf reproduce NAME… | all --out DIR`, `edgekf reproduce --list`: the papers' figures;
+//! - `edgekf design`: stress design and rigidity checks of a framework;
+//! - `edgekf fit-ar`: the AR input model of chapter 6 from trial runs;
 //! - `edgekf bench`: closed-loop speed per estimator and the wall time of `reproduce`.
 
 mod bench;
+mod design;
 mod io;
 mod plot;
 mod registry;
@@ -57,6 +60,9 @@ enum Command {
         #[command(flatten)]
         over: Overrides,
     },
+    /// Design the stress (Laplacian weights) of a framework, check it, write framework.json and
+    /// framework.png.
+    Design(design::DesignArgs),
     /// Fit the AR(p) input model of `rkf-ar` / `rkf-commless` from trial runs (Yule–Walker).
     FitAr {
         /// Scenario file (its estimators are simulated; the fit uses one of them).
@@ -200,6 +206,7 @@ fn dispatch(cli: Cli) -> Result<()> {
             over,
         } => fit_ar(&scenario, order, from, estimator.as_deref(), &over),
         Command::Bench(args) => bench::run(&args),
+        Command::Design(args) => design::run(&args),
     }
 }
 

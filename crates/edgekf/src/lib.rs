@@ -6,6 +6,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod control;
+pub mod design;
 pub mod estimate;
 pub mod framework;
 pub mod graph;

@@ -1,0 +1,289 @@
+//! Formation design (issue 4): every design passes every check on the hexagon, a 3-D framework
+//! and a random 50-agent configuration; the designed loops converge to the affine image; flexible
+//! and non-generic inputs are rejected with the right reason.
+
+use edgekf::design::{
+    self, generators, sdp, sparse, yang, Candidate, CheckReport, DesignError, Method,
+};
+use edgekf::framework::Framework;
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+const METHODS: [Method; 3] = [Method::Sdp, Method::Yang, Method::Sparse];
+
+fn candidates() -> Vec<Candidate> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2024);
+    vec![
+        generators::hexagon_candidate(),
+        generators::hexagon3d_candidate(),
+        generators::random50(generators::Density::Sparse, &mut rng),
+    ]
+}
+
+/// Noiseless closed loop `z_{k+1} = z_k − Δt (L ⊗ I) z_k` from a random start, with
+/// `Δt = 1 / λ_max` (stable for `Δt < 2 / λ_max`). Returns the final positions and the start.
+fn simulate(f: &Framework, rng: &mut impl Rng) -> (DMatrix<f64>, DMatrix<f64>) {
+    let n = f.agents();
+    let dim = f.dim();
+    let l = f.laplacian();
+    let dt = 1.0 / f.eigenvalues()[n - 1];
+    let z0 = DMatrix::from_fn(n, dim, |_, _| rng.random_range(-5.0..5.0));
+    let mut z = z0.clone();
+    // Contraction per step 1 − Δt λ_gap = 1 − 1/κ; 40 κ steps shrink the non-affine part by
+    // e^-40 ≈ 4e-18, below round-off.
+    let steps = (40.0 * f.eigenvalues()[n - 1] / f.stress_gap()).ceil() as usize;
+    for _ in 0..steps {
+        z = &z - (l * &z) * dt;
+    }
+    (z, z0)
+}
+
+fn affine_basis(f: &Framework) -> DMatrix<f64> {
+    DMatrix::from_fn(f.agents(), f.dim() + 1, |i, c| {
+        if c == 0 {
+            1.0
+        } else {
+            f.point(i)[c - 1]
+        }
+    })
+}
+
+#[test]
+fn every_design_passes_every_check_and_converges() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+    for c in candidates() {
+        for m in METHODS {
+            let d = design::design(&c, m).unwrap_or_else(|e| panic!("{} {m:?}: {e}", c.name));
+            let f = &d.framework;
+            let report = CheckReport::from_framework(f);
+            assert!(report.passed(), "{} {m:?}:\n{report}", c.name);
+            assert!(report.universally_rigid());
+            assert!(report.connected() && report.generic() && report.equilibrium() && report.psd());
+            assert_eq!(report.rank, f.agents() - f.dim() - 1);
+            // Every design is normalised to smallest nonzero eigenvalue 1 (to round-off).
+            assert!(
+                (report.stress_gap() - 1.0).abs() < 1e-9,
+                "{}",
+                report.stress_gap()
+            );
+            // Leaders stay linked (Framework::new verified it); the check names them.
+            assert_eq!(f.leaders(), &c.leaders[..]);
+
+            let (z, z0) = simulate(f, &mut rng);
+            // The limit is the orthogonal projection of z0 onto span[1 P] (L is symmetric and
+            // its null space is exactly that span): an affine image of the configuration.
+            let a = affine_basis(f);
+            let proj = &a * (a.transpose() * &a).try_inverse().unwrap() * a.transpose();
+            let limit = &proj * &z0;
+            let err = (&z - &limit).amax();
+            assert!(
+                err < 1e-8 * z0.amax(),
+                "{} {m:?}: distance to affine image {err:e}",
+                c.name
+            );
+        }
+    }
+}
+
+#[test]
+fn sdp_reproduces_the_hexagon_preset_spectrum() {
+    let d = sdp::design(
+        &generators::hexagon_candidate(),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
+    let ours = d.framework.eigenvalues();
+    let preset = Framework::hexagon();
+    // Spectrum {0 ×3, 1 ×3, 15.7, 51.6 ×3}: the optimal ratio λ_max/λ_min is unique; we ask for
+    // agreement to 1e-4 relative (solver stops at 1e-6 relative duality gap; the preset was
+    // solved offline to similar accuracy).
+    for (a, b) in ours.iter().zip(preset.eigenvalues()) {
+        assert!(
+            (a - b).abs() <= 1e-4 * b.abs().max(1.0),
+            "{ours:?} vs {:?}",
+            preset.eigenvalues()
+        );
+    }
+    assert!((ours[9] - 51.6).abs() < 0.05 && (ours[6] - 15.7).abs() < 0.05);
+}
+
+#[test]
+fn thesis_gap_variant_respects_its_bounds() {
+    let opts = sdp::SdpOptions {
+        objective: sdp::SdpObjective::ThesisGap {
+            lambda_bar: 100.0,
+            weight_bound: 1.0,
+        },
+        ..sdp::SdpOptions::default()
+    };
+    let d = sdp::design(&generators::hexagon_candidate(), &opts).unwrap();
+    let r = CheckReport::from_framework(&d.framework);
+    assert!(r.passed(), "{r}");
+    // Unscaled: every |w| ≤ 1 (interior point, so strictly) and the gap positive.
+    assert!(d.framework.weights().iter().all(|w| w.abs() <= 1.0));
+    assert!(r.stress_gap() > 0.0);
+    // The best-conditioned design scaled to max |w| = 1 is feasible for this problem, so the
+    // optimum must reach at least its gap (up to the solver's 1e-6 relative accuracy).
+    let cond = sdp::design(
+        &generators::hexagon_candidate(),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
+    let wmax = cond
+        .framework
+        .weights()
+        .iter()
+        .fold(0.0_f64, |m, w| m.max(w.abs()));
+    assert!(r.stress_gap() >= cond.framework.stress_gap() / wmax * (1.0 - 1e-6));
+}
+
+#[test]
+fn three_d_trilateration_and_complete_graphs() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
+    let c = generators::trilateration(20, 3, 5, &mut rng);
+    for m in METHODS {
+        let d = design::design(&c, m).unwrap();
+        assert!(CheckReport::from_framework(&d.framework).passed());
+    }
+    // Complete graph: the conditioning optimum is the projector, ratio 1.
+    let cfg = generators::random_config(8, 2, 3.0, &mut rng);
+    let d = sdp::design(
+        &generators::complete("k8", 2, cfg),
+        &sdp::SdpOptions::default(),
+    )
+    .unwrap();
+    let ev = d.framework.eigenvalues();
+    assert!(
+        (ev[7] - 1.0).abs() < 1e-9 && (ev[3] - 1.0).abs() < 1e-9,
+        "{ev:?}"
+    );
+}
+
+#[test]
+fn sparse_design_drops_links_and_stays_rigid() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2024);
+    let c = generators::random50(generators::Density::Sparse, &mut rng);
+    let d = sparse::design(&c, &sparse::SparseOptions::default()).unwrap();
+    let kept = d.framework.graph().links().len();
+    assert!(kept < c.links.len(), "{kept} of {}", c.links.len());
+    assert_eq!(d.candidate_links, c.links.len());
+    // Every kept link is a candidate.
+    assert!(d
+        .framework
+        .graph()
+        .links()
+        .iter()
+        .all(|l| c.links.contains(l)));
+}
+
+#[test]
+fn yang_builds_a_banded_trilateration_graph() {
+    let d = yang::design(&generators::hexagon_candidate()).unwrap();
+    let r = CheckReport::from_framework(&d.framework);
+    assert!(
+        matches!(r.trilateration, design::checks::Trilateration::Yes { .. }),
+        "{r}"
+    );
+    // Each agent after the first D + 1 links to at most D + 1 agents before it in the order:
+    // (D + 1)(D + 2)/2 + (D + 1)(N − D − 2) links at most.
+    assert!(d.framework.graph().links().len() <= 3 + 3 * 7);
+}
+
+fn hexagon_with(links: Vec<(usize, usize)>) -> Candidate {
+    let mut c = generators::hexagon_candidate();
+    c.links = links;
+    c
+}
+
+#[test]
+fn flexible_frameworks_are_rejected_with_the_reason() {
+    // A cycle carries no equilibrium stress at all.
+    let cycle: Vec<(usize, usize)> = (0..10).map(|i| (i, (i + 1) % 10)).collect();
+    for m in [Method::Sdp, Method::Sparse] {
+        let err = design::design(&hexagon_with(cycle.clone()), m).unwrap_err();
+        assert!(
+            matches!(&err, DesignError::NotUniversallyRigid(s) if s.contains("no nonzero equilibrium stress")),
+            "{err}"
+        );
+    }
+    // The hexagon with agent 9 hanging on two links: the rest has stresses, but agent 9 can
+    // swing out of the affine image, so no PSD stress of rank N − D − 1 exists.
+    let c = generators::hexagon_candidate();
+    let links: Vec<_> = c
+        .links
+        .iter()
+        .copied()
+        .filter(|&(i, j)| !(j == 9 && (i == 0 || i == 2 || i == 3)))
+        .collect();
+    assert_eq!(links.iter().filter(|l| l.1 == 9).count(), 2);
+    for m in [Method::Sdp, Method::Sparse] {
+        let err = design::design(&hexagon_with(links.clone()), m).unwrap_err();
+        assert!(
+            matches!(&err, DesignError::NotUniversallyRigid(s) if s.contains("no positive semidefinite stress of rank N − D − 1 = 7")),
+            "{err}"
+        );
+    }
+    // The check report names the failure too: the preset weights restricted to those links.
+    let hex = Framework::hexagon();
+    let w: Vec<f64> = hex
+        .graph()
+        .links()
+        .iter()
+        .zip(hex.weights())
+        .filter(|(l, _)| links.contains(l))
+        .map(|(_, &w)| w)
+        .collect();
+    let r = design::check(2, &c.config, &links, &w).unwrap();
+    assert!(!r.passed());
+    assert!(r.to_string().contains("verdict: FAILED"), "{r}");
+}
+
+#[test]
+fn non_generic_configurations_are_rejected() {
+    let mut c = generators::hexagon_candidate();
+    c.config = (0..10).map(|i| vec![i as f64, 0.5 * i as f64]).collect();
+    for m in METHODS {
+        let err = design::design(&c, m).unwrap_err();
+        assert!(matches!(err, DesignError::NonGeneric(_)), "{m:?}: {err}");
+    }
+    let mut small = generators::hexagon_candidate();
+    small.config.truncate(3);
+    small.links = vec![(0, 1), (0, 2), (1, 2)];
+    assert!(matches!(
+        design::design(&small, Method::Sdp),
+        Err(DesignError::TooFewAgents { n: 3, dim: 2 })
+    ));
+}
+
+#[test]
+fn check_report_matches_framework_verification() {
+    // A stress whose sign is flipped is an equilibrium but not PSD.
+    let f = Framework::hexagon();
+    let cfg: Vec<Vec<f64>> = (0..10).map(|i| f.point(i).to_vec()).collect();
+    let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
+    let r = design::check(2, &cfg, f.graph().links(), &neg).unwrap();
+    assert!(r.equilibrium() && !r.psd());
+}
+
+#[test]
+fn malformed_input_is_an_input_error() {
+    let mut c = generators::hexagon_candidate();
+    c.leaders = vec![0];
+    for m in METHODS {
+        let err = design::design(&c, m).unwrap_err();
+        assert!(matches!(err, DesignError::Input(_)), "{m:?}: {err}");
+    }
+    let mut c = generators::hexagon_candidate();
+    c.config[4] = vec![1.0];
+    assert!(matches!(
+        design::design(&c, Method::Sdp),
+        Err(DesignError::Input(_))
+    ));
+    let c = generators::hexagon_candidate();
+    let err = design::check(2, &c.config, &c.links, &[1.0; 29]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "invalid input: 29 weights given for 30 links"
+    );
+}
