@@ -123,109 +123,89 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
         .margin(16)
         .x_label_area_size(56)
         .y_label_area_size(96);
-    if spec.log_y {
-        let (lo, hi) = (lo * 0.8, hi * 1.25);
-        let mut chart = builder
-            .build_cartesian_2d(0.0..tmax, (lo..hi).log_scale())
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("time [s]")
-            .y_desc(metric_label(metric))
-            .y_label_formatter(&|v| format!("{v:.1e}"))
-            .label_style(("sans-serif", 16))
-            .axis_desc_style(("sans-serif", 18))
-            .draw()
-            .map_err(draw_err)?;
-        for (k, (l, s)) in series.iter().enumerate() {
-            let c = colour(k);
-            let band: Vec<(f64, f64)> = t
-                .iter()
-                .zip(s.mean.iter().zip(&s.std))
-                .map(|(&x, (m, sd))| (x, (m + sd.max(0.0)).max(lo)))
-                .chain(
-                    t.iter()
-                        .zip(s.mean.iter().zip(&s.std))
-                        .rev()
-                        .map(|(&x, (m, sd))| {
-                            let v = m - if sd.is_finite() { *sd } else { 0.0 };
-                            (x, if v > lo { v } else { lo })
-                        }),
-                )
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
-                .map_err(draw_err)?;
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter().zip(&s.mean).map(|(&x, &m)| (x, m.max(lo))),
-                    c.stroke_width(2),
-                ))
-                .map_err(draw_err)?
-                .label(l.as_str())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
-                });
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(draw_err)?;
+    // A log axis is drawn as a linear axis of log10 values, labelled with the values: plotters'
+    // own log scale labels only the top decade of a narrow range.
+    let (y0, y1, map): (f64, f64, Box<dyn Fn(f64) -> f64>) = if spec.log_y {
+        let (l, h) = ((lo * 0.8).log10(), (hi * 1.25).log10());
+        (l, h, Box::new(move |v: f64| v.max(lo * 0.8).log10()))
     } else {
         let pad = 0.05 * (hi - lo).max(1e-12);
-        let mut chart = builder
-            .build_cartesian_2d(0.0..tmax, (lo - pad)..(hi + pad))
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("time [s]")
-            .y_desc(metric_label(metric))
-            .label_style(("sans-serif", 16))
-            .axis_desc_style(("sans-serif", 18))
-            .draw()
-            .map_err(draw_err)?;
-        for (k, (l, s)) in series.iter().enumerate() {
-            let c = colour(k);
-            let sd = |v: &f64| if v.is_finite() { *v } else { 0.0 };
-            let band: Vec<(f64, f64)> = t
-                .iter()
-                .zip(s.mean.iter().zip(&s.std))
-                .map(|(&x, (m, v))| (x, m + sd(v)))
-                .chain(
-                    t.iter()
-                        .zip(s.mean.iter().zip(&s.std))
-                        .rev()
-                        .map(|(&x, (m, v))| (x, m - sd(v))),
-                )
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
-                .map_err(draw_err)?;
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter().zip(&s.mean).map(|(&x, &m)| (x, m)),
-                    c.stroke_width(2),
-                ))
-                .map_err(draw_err)?
-                .label(l.as_str())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
-                });
+        (lo - pad, hi + pad, Box::new(|v| v))
+    };
+    let mut chart = builder
+        .build_cartesian_2d(0.0..tmax, y0..y1)
+        .map_err(draw_err)?;
+    let log = spec.log_y;
+    let fmt = move |v: &f64| {
+        if log {
+            format!("{:.1e}", 10f64.powf(*v))
+        } else {
+            format!("{v:.3}")
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(draw_err)?;
-    }
+    };
+    chart
+        .configure_mesh()
+        .x_desc("time [s]")
+        .y_desc(if log {
+            format!("{} (log scale)", metric_label(metric))
+        } else {
+            metric_label(metric).to_string()
+        })
+        .y_labels(12)
+        .y_label_formatter(&fmt)
+        .label_style(("sans-serif", 16))
+        .axis_desc_style(("sans-serif", 18))
+        .draw()
+        .map_err(draw_err)?;
+    draw_bands(&mut chart, &t, &series, &map)?;
     root.present().map_err(draw_err)?;
+    Ok(())
+}
+
+/// Mean curves with ±1σ bands (values mapped to the axis by `map`) and the legend.
+fn draw_bands<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    t: &[f64],
+    series: &[(String, &edgekf::sim::Series)],
+    map: &dyn Fn(f64) -> f64,
+) -> Result<()> {
+    let sd = |v: &f64| if v.is_finite() { v.max(0.0) } else { 0.0 };
+    for (k, (l, s)) in series.iter().enumerate() {
+        let c = colour(k);
+        let upper = t
+            .iter()
+            .zip(s.mean.iter().zip(&s.std))
+            .map(|(&x, (m, v))| (x, map(m + sd(v))));
+        let lower = t
+            .iter()
+            .zip(s.mean.iter().zip(&s.std))
+            .rev()
+            .map(|(&x, (m, v))| (x, map(m - sd(v))));
+        let band: Vec<(f64, f64)> = upper.chain(lower).collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
+            .map_err(draw_err)?;
+        chart
+            .draw_series(LineSeries::new(
+                t.iter().zip(&s.mean).map(|(&x, &m)| (x, map(m))),
+                c.stroke_width(2),
+            ))
+            .map_err(draw_err)?
+            .label(l.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 16))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(draw_err)?;
     Ok(())
 }
 
