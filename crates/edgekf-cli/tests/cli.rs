@@ -255,3 +255,43 @@ fn reproduce_lists_and_runs_figures() {
     assert!(dir.join("eusipco-fig3/eusipco-fig3.png").exists());
     assert!(dir.join("eusipco-fig3/metrics.csv").exists());
 }
+
+#[test]
+fn fit_ar_prints_a_table_a_scenario_can_take() {
+    let dir = tmp("fitar");
+    let sc = write_scenario(&dir, SQUARE);
+    let o = edgekf(&[
+        "fit-ar",
+        sc.to_str().unwrap(),
+        "--order",
+        "2",
+        "--estimator",
+        "rkf",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    let table: toml::Table = toml::from_str(&out).expect("fit-ar prints TOML");
+    let ar = &table["comm"]["ar"];
+    assert_eq!(ar["coeffs"].as_array().unwrap().len(), 2);
+    assert_eq!(ar["noise_var"].as_array().unwrap().len(), 2);
+    // Feeding it back: a scenario with rkf-ar and the fitted model runs.
+    let text = format!(
+        "{}\n{out}",
+        SQUARE.replace(
+            "estimators = [\"mle\", \"rkf\"]",
+            "estimators = [\"rkf\", { kind = \"rkf-ar\", p_fail = 0.5 }]"
+        )
+    );
+    let sc2 = dir.join("with-ar.toml");
+    fs::write(&sc2, text).unwrap();
+    let o = edgekf(&[
+        "run",
+        sc2.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--from", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--from"));
+}
