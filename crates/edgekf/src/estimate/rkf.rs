@@ -32,7 +32,11 @@ pub(crate) type Mat<const D: usize> = SMatrix<f64, D, D>;
 ///
 /// # Panics
 /// If `Σ_{k|k−1} + W` is singular (only possible with zero noise and zero prior).
+#[inline]
 pub fn joseph_step<const D: usize>(prior: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
+    if D == 2 {
+        return joseph_2x2(prior, w);
+    }
     let s = prior + w;
     let k = prior
         * s.try_inverse()
@@ -40,6 +44,43 @@ pub fn joseph_step<const D: usize>(prior: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D
     let a = Mat::<D>::identity() - k;
     let post = a * prior * a.transpose() + k * w * k.transpose();
     (0.5 * (post + post.transpose()), k)
+}
+
+/// [`joseph_step`] for D = 2 in closed form (both matrices symmetric): the same arithmetic for
+/// the shared-gain and the per-run filters, about three times faster than the generic path.
+#[inline]
+fn joseph_2x2<const D: usize>(p: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
+    let (p11, p12, p22) = (p[(0, 0)], p[(0, 1)], p[(1, 1)]);
+    let (w11, w12, w22) = (w[(0, 0)], w[(0, 1)], w[(1, 1)]);
+    let (s11, s12, s22) = (p11 + w11, p12 + w12, p22 + w22);
+    let det = s11 * s22 - s12 * s12;
+    assert!(det > 0.0, "innovation covariance is positive definite");
+    let (i11, i12, i22) = (s22 / det, -s12 / det, s11 / det);
+    let (k11, k12) = (p11 * i11 + p12 * i12, p11 * i12 + p12 * i22);
+    let (k21, k22) = (p12 * i11 + p22 * i12, p12 * i12 + p22 * i22);
+    let (a11, a12, a21, a22) = (1.0 - k11, -k12, -k21, 1.0 - k22);
+    // A Σ Aᵀ
+    let (m11, m12) = (a11 * p11 + a12 * p12, a11 * p12 + a12 * p22);
+    let (m21, m22) = (a21 * p11 + a22 * p12, a21 * p12 + a22 * p22);
+    let (c11, c12) = (m11 * a11 + m12 * a12, m11 * a21 + m12 * a22);
+    let (c21, c22) = (m21 * a11 + m22 * a12, m21 * a21 + m22 * a22);
+    // K W Kᵀ
+    let (n11, n12) = (k11 * w11 + k12 * w12, k11 * w12 + k12 * w22);
+    let (n21, n22) = (k21 * w11 + k22 * w12, k21 * w12 + k22 * w22);
+    let (d11, d12) = (n11 * k11 + n12 * k12, n11 * k21 + n12 * k22);
+    let (d21, d22) = (n21 * k11 + n22 * k12, n21 * k21 + n22 * k22);
+    let off = 0.5 * ((c12 + d12) + (c21 + d21));
+    let mut post = Mat::<D>::zeros();
+    post[(0, 0)] = c11 + d11;
+    post[(1, 1)] = c22 + d22;
+    post[(0, 1)] = off;
+    post[(1, 0)] = off;
+    let mut k = Mat::<D>::zeros();
+    k[(0, 0)] = k11;
+    k[(0, 1)] = k12;
+    k[(1, 0)] = k21;
+    k[(1, 1)] = k22;
+    (post, k)
 }
 
 /// The covariance recursion of one edge, frozen once converged to rounding level.
@@ -211,5 +252,22 @@ impl<const D: usize> Estimator for Rkf<D> {
 
     fn cov_trace(&self) -> f64 {
         self.covs.iter().map(|c| c.sigma.trace()).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closed_form_2x2_matches_the_generic_joseph_form() {
+        let p = Mat::<2>::new(0.7, 0.2, 0.2, 0.4);
+        let w = Mat::<2>::new(0.01, 0.003, 0.003, 0.02);
+        let (post, k) = joseph_step(&p, &w);
+        let kk = p * (p + w).try_inverse().unwrap();
+        let a = Mat::<2>::identity() - kk;
+        let want = a * p * a.transpose() + kk * w * kk.transpose();
+        assert!((post - want).amax() < 1e-15 && (k - kk).amax() < 1e-15);
+        assert_eq!(post[(0, 1)].to_bits(), post[(1, 0)].to_bits());
     }
 }
