@@ -234,57 +234,75 @@ fn inputs_plot(
             curves.push((format!("{l}: u_{}", ["x", "y", "z"][c]), v));
         }
     }
-    let (lo, hi) = curves
-        .iter()
-        .flat_map(|(_, v)| v.iter())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-            (a.min(x), b.max(x))
-        });
-    let pad = 0.05 * (hi - lo).max(1e-12);
-    let root = BitMapBackend::new(path, (1100, 620)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1100, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(draw_err)?;
     let title = if spec.title.is_empty() {
         "control input".to_string()
     } else {
         spec.title.clone()
     };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{title}  (agent {agent}, run {})", sc.paths_run),
+    let root = root
+        .titled(
+            &format!("{title}  (agent {agent}, run {})", sc.paths_run),
             ("sans-serif", 24),
         )
-        .margin(16)
-        .x_label_area_size(56)
-        .y_label_area_size(80)
-        .build_cartesian_2d(0.0..tmax, (lo - pad)..(hi + pad))
         .map_err(draw_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("time [s]")
-        .y_desc("control input u [m/s]")
-        .label_style(("sans-serif", 16))
-        .axis_desc_style(("sans-serif", 18))
-        .draw()
-        .map_err(draw_err)?;
-    for (k, (l, v)) in curves.iter().enumerate() {
-        let c = colour(k);
+    let (top, bottom) = root.split_vertically(430);
+    // Whole run, then the steady state (last five sixths) on its own scale: the first second's
+    // inputs are two orders of magnitude larger than the steady-state process.
+    let t_steady = tmax / 6.0;
+    for (area, from, caption) in [
+        (&top, 0.0, "whole run"),
+        (&bottom, t_steady, "steady state"),
+    ] {
+        let first = t.iter().position(|&x| x >= from).unwrap_or(0);
+        let (lo, hi) = curves
+            .iter()
+            .flat_map(|(_, v)| v[first..].iter())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let pad = 0.05 * (hi - lo).max(1e-12);
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!("{caption} ({:.0}–{:.0} s)", t[first], tmax),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(48)
+            .y_label_area_size(80)
+            .build_cartesian_2d(t[first]..tmax, (lo - pad)..(hi + pad))
+            .map_err(draw_err)?;
         chart
-            .draw_series(LineSeries::new(
-                t.iter().copied().zip(v.iter().copied()),
-                c.stroke_width(1),
-            ))
-            .map_err(draw_err)?
-            .label(l.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc("control input u [m/s]")
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 17))
+            .draw()
+            .map_err(draw_err)?;
+        for (k, (l, v)) in curves.iter().enumerate() {
+            let c = colour(k);
+            chart
+                .draw_series(LineSeries::new(
+                    t[first..].iter().copied().zip(v[first..].iter().copied()),
+                    c.stroke_width(1),
+                ))
+                .map_err(draw_err)?
+                .label(l.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(draw_err)?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(draw_err)?;
     root.present().map_err(draw_err)?;
     Ok(())
 }
