@@ -230,33 +230,25 @@ impl Framework {
             return Err(FrameworkError::Degenerate { rank: span, dim });
         }
         let laplacian = graph.laplacian(&sorted_w);
-        let eig = laplacian.clone().symmetric_eigen();
-        let mut eigenvalues: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-        eigenvalues.sort_by(f64::total_cmp);
-        let scale = eigenvalues
-            .iter()
-            .fold(0.0_f64, |m, v| m.max(v.abs()))
-            .max(f64::MIN_POSITIVE);
-        let tol = 1e-9 * scale * n as f64;
-        if eigenvalues[0] < -tol {
+        let spec = StressSpectrum::of(&laplacian, &flat, dim);
+        if spec.eigenvalues[0] < -spec.eigen_tolerance {
             return Err(FrameworkError::NotPsd {
-                min_eig: eigenvalues[0],
+                min_eig: spec.eigenvalues[0],
             });
         }
-        let rank = eigenvalues.iter().filter(|&&v| v > tol).count();
         let expected = n.saturating_sub(dim + 1);
-        if rank != expected {
-            return Err(FrameworkError::WrongRank { rank, expected });
+        if spec.rank != expected {
+            return Err(FrameworkError::WrongRank {
+                rank: spec.rank,
+                expected,
+            });
         }
-        let pmax = flat.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(1.0);
-        let mut residual = 0.0_f64;
-        for d in 0..dim {
-            let q = DVector::from_iterator(n, (0..n).map(|i| flat[i * dim + d]));
-            residual = residual.max((&laplacian * q).amax());
+        if spec.equilibrium_residual > spec.equilibrium_tolerance {
+            return Err(FrameworkError::NotEquilibrium {
+                residual: spec.equilibrium_residual,
+            });
         }
-        if residual > 1e-9 * scale * pmax * n as f64 {
-            return Err(FrameworkError::NotEquilibrium { residual });
-        }
+        let eigenvalues = spec.eigenvalues;
         check_leaders(&graph, dim, leaders)?;
         Ok(Self {
             name: name.into(),
@@ -400,8 +392,63 @@ fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), Fra
     Ok(())
 }
 
-/// Dimension of the affine span of the points.
-fn affine_rank(flat: &[f64], n: usize, dim: usize) -> usize {
+/// The spectral facts of a stress (generalized Laplacian) for a configuration, with the
+/// tolerances every check in this crate uses: an eigenvalue counts as zero below
+/// `1e-9 · max|λ| · N`, and the equilibrium `(L ⊗ I) p = 0` holds when its largest entry is below
+/// `1e-9 · max|λ| · max(1, max|p|) · N` — far above the ≈ 1e-15 relative round-off of the
+/// eigensolver, far below any stress that matters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StressSpectrum {
+    /// Eigenvalues, ascending.
+    pub eigenvalues: Vec<f64>,
+    /// Zero threshold for eigenvalues.
+    pub eigen_tolerance: f64,
+    /// Numerical rank.
+    pub rank: usize,
+    /// Largest entry of `|(L ⊗ I) p|`.
+    pub equilibrium_residual: f64,
+    /// Threshold for the residual.
+    pub equilibrium_tolerance: f64,
+}
+
+impl StressSpectrum {
+    /// Computes the spectrum of `laplacian` (N × N) and the equilibrium residual of the
+    /// agent-major configuration `flat` (N · D).
+    pub fn of(laplacian: &DMatrix<f64>, flat: &[f64], dim: usize) -> Self {
+        let n = laplacian.nrows();
+        let mut eigenvalues: Vec<f64> = laplacian
+            .clone()
+            .symmetric_eigen()
+            .eigenvalues
+            .iter()
+            .copied()
+            .collect();
+        eigenvalues.sort_by(f64::total_cmp);
+        let scale = eigenvalues
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
+        let eigen_tolerance = 1e-9 * scale * n as f64;
+        let rank = eigenvalues.iter().filter(|&&v| v > eigen_tolerance).count();
+        let pmax = flat.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(1.0);
+        let mut equilibrium_residual = 0.0_f64;
+        for d in 0..dim {
+            let q = DVector::from_iterator(n, (0..n).map(|i| flat[i * dim + d]));
+            equilibrium_residual = equilibrium_residual.max((laplacian * q).amax());
+        }
+        Self {
+            eigenvalues,
+            eigen_tolerance,
+            rank,
+            equilibrium_residual,
+            equilibrium_tolerance: 1e-9 * scale * pmax * n as f64,
+        }
+    }
+}
+
+/// Dimension of the affine span of the points (singular values of the configuration relative to
+/// its first point above `1e-9` of the largest).
+pub(crate) fn affine_rank(flat: &[f64], n: usize, dim: usize) -> usize {
     let mut m = DMatrix::zeros(n, dim);
     for i in 0..n {
         for d in 0..dim {

@@ -16,7 +16,7 @@
 
 use std::fmt;
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 use super::DesignError;
 use crate::framework::Framework;
@@ -241,8 +241,8 @@ pub fn check(
     } else {
         sv.min() / smax
     };
-    // Laplacian, spectrum, equilibrium — tolerances as in Framework::new: relative 1e-9 of the
-    // spectral scale per agent, far above the ≈ 1e-15 round-off of the eigensolver.
+    // Laplacian, spectrum, equilibrium: the same tolerances as Framework::new (StressSpectrum).
+
     let mut l = DMatrix::<f64>::zeros(n, n);
     for &(i, j, w) in &active {
         l[(i, i)] += w;
@@ -250,31 +250,14 @@ pub fn check(
         l[(i, j)] -= w;
         l[(j, i)] -= w;
     }
-    let mut eigenvalues: Vec<f64> = l
-        .clone()
-        .symmetric_eigen()
-        .eigenvalues
-        .iter()
-        .copied()
-        .collect();
-    eigenvalues.sort_by(f64::total_cmp);
-    let scale = eigenvalues
-        .iter()
-        .fold(0.0_f64, |m, v| m.max(v.abs()))
-        .max(f64::MIN_POSITIVE);
-    let eigen_tolerance = 1e-9 * scale * n as f64;
-    let rank = eigenvalues.iter().filter(|&&v| v > eigen_tolerance).count();
-    let pmax = config
-        .iter()
-        .flatten()
-        .fold(0.0_f64, |m, v| m.max(v.abs()))
-        .max(1.0);
-    let mut equilibrium_residual = 0.0_f64;
-    for d in 0..dim {
-        let q = DVector::from_iterator(n, config.iter().map(|p| p[d]));
-        equilibrium_residual = equilibrium_residual.max((&l * q).amax());
-    }
-    let equilibrium_tolerance = 1e-9 * scale * pmax * n as f64;
+    let flat: Vec<f64> = config.iter().flatten().copied().collect();
+    let crate::framework::StressSpectrum {
+        eigenvalues,
+        eigen_tolerance,
+        rank,
+        equilibrium_residual,
+        equilibrium_tolerance,
+    } = crate::framework::StressSpectrum::of(&l, &flat, dim);
     let trilateration = trilateration_test(&adj, dim);
     Ok(CheckReport {
         agents: n,
