@@ -84,6 +84,28 @@ fn joseph_2x2<const D: usize>(p: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
 }
 
 /// The covariance recursion of one edge, frozen once converged to rounding level.
+///
+/// This is also the piece to embed on a real agent: one `EdgeCov` per neighbour, a 2-vector
+/// estimate, and per step the prediction with the communicated inputs and the update with the
+/// mean of the T measurements.
+///
+/// ```
+/// use edgekf::estimate::rkf::EdgeCov;
+/// use nalgebra::{Matrix2, Vector2};
+///
+/// let q = Matrix2::new(2e-6, 0.0, 0.0, 2e-6); // Q_ij = B̄_ijᵀ Q B̄_ij
+/// let w = Matrix2::new(1e-3, 3e-4, 3e-4, 1e-3); // R_ij / T
+/// let mut cov = EdgeCov::<2>::new(Matrix2::identity() * 2.0); // Σ_{0|0} = 2P
+/// let mut z = Vector2::zeros(); // ẑ_{0|0}
+/// let (dt, u_i, u_j) = (1e-3, Vector2::new(0.1, 0.0), Vector2::new(0.0, 0.2));
+/// for _ in 0..1000 {
+///     let y_mean = Vector2::new(1.0, -0.5); // mean of this step's T measurements of z_i − z_j
+///     z += dt * (u_i - u_j); // (5c)
+///     cov.step(&q, &w, None); // (5d), (5e), (5g)
+///     z += cov.gain * (y_mean - z); // (5f)
+/// }
+/// assert!(cov.sigma.trace() < 0.01);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EdgeCov<const D: usize> {
     /// Posterior covariance `Σ_{k|k}`.
