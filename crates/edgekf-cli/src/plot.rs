@@ -321,23 +321,25 @@ fn paths_plot(
     let cols = panels.min(2);
     let rows = panels.div_ceil(cols);
     let root =
-        BitMapBackend::new(path, (620 * cols as u32, 600 * rows as u32 + 50)).into_drawing_area();
+        BitMapBackend::new(path, (640 * cols as u32, 600 * rows as u32 + 80)).into_drawing_area();
     root.fill(&WHITE).map_err(draw_err)?;
     let title = if spec.title.is_empty() {
         "agent paths".to_string()
     } else {
         spec.title.clone()
     };
-    let root = root
-        .titled(
-            &format!(
-                "{title}  (run {}, 0–{:.0} s; ○ start, ▲ end, red ▲ leaders, grey: final links)",
-                sc.paths_run,
-                res.steps.last().copied().unwrap_or(0) as f64 * res.dt
-            ),
-            ("sans-serif", 22),
-        )
-        .map_err(draw_err)?;
+    let root = root.titled(&title, ("sans-serif", 22)).map_err(draw_err)?;
+    let (root, foot) = root.split_vertically(600 * rows as u32 + 80 - 30 - 26);
+    foot.draw(&Text::new(
+        format!(
+            "run {}, 0–{:.0} s; ○ start, ▲ end (red: leaders), grey: final links",
+            sc.paths_run,
+            res.steps.last().copied().unwrap_or(0) as f64 * res.dt
+        ),
+        (20, 4),
+        ("sans-serif", 16),
+    ))
+    .map_err(draw_err)?;
     let areas = root.split_evenly((rows, cols));
     for (area, label) in areas.iter().zip(labels) {
         let e = res

@@ -13,8 +13,11 @@ fn graph_strategy() -> impl Strategy<Value = (usize, Vec<(usize, usize)>)> {
         let tree = proptest::collection::vec(any::<u64>(), n - 1);
         let extra = proptest::collection::vec((0..n, 0..n), 0..2 * n);
         (Just(n), tree, extra).prop_map(|(n, tree, extra)| {
-            let mut links: Vec<(usize, usize)> =
-                tree.iter().enumerate().map(|(k, r)| ((r % (k as u64 + 1)) as usize, k + 1)).collect();
+            let mut links: Vec<(usize, usize)> = tree
+                .iter()
+                .enumerate()
+                .map(|(k, r)| ((r % (k as u64 + 1)) as usize, k + 1))
+                .collect();
             for (a, b) in extra {
                 let l = (a.min(b), a.max(b));
                 if a != b && !links.iter().any(|&(i, j)| (i.min(j), i.max(j)) == l) {
