@@ -55,7 +55,8 @@ fn joseph_2x2<const D: usize>(p: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
     let (s11, s12, s22) = (p11 + w11, p12 + w12, p22 + w22);
     let det = s11 * s22 - s12 * s12;
     assert!(det > 0.0, "innovation covariance is positive definite");
-    let (i11, i12, i22) = (s22 / det, -s12 / det, s11 / det);
+    let r = 1.0 / det;
+    let (i11, i12, i22) = (s22 * r, -s12 * r, s11 * r);
     let (k11, k12) = (p11 * i11 + p12 * i12, p11 * i12 + p12 * i22);
     let (k21, k22) = (p12 * i11 + p22 * i12, p12 * i12 + p22 * i22);
     let (a11, a12, a21, a22) = (1.0 - k11, -k12, -k21, 1.0 - k22);
