@@ -256,8 +256,8 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                 }
                 #[cfg(feature = "clarabel")]
                 SdpSolver::Clarabel => {
-                    // The gap is relative to max(1, |λ|): scale the tolerance down with λ̄ so
-                    // that small λ̄ are solved as accurately as λ̄ ≈ 1.
+                    // Clarabel's gap is relative to max(1, |λ|), i.e. absolute for λ < 1: at
+                    // most rel_tol (1e-6), and never coarser than the acceptance floor allows.
                     let tol = options.rel_tol.min(CLARABEL_GAP.max(1e-2 * floor));
                     let out = conic::solve(&space, &mode, tol)?;
                     (out.x, out.iterations)
