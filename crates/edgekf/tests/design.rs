@@ -287,3 +287,163 @@ fn malformed_input_is_an_input_error() {
         "invalid input: 29 weights given for 30 links"
     );
 }
+
+/// The opt-in Clarabel solver (feature `clarabel`) against the default interior-point method.
+#[cfg(feature = "clarabel")]
+mod clarabel {
+    use super::*;
+    use std::time::Instant;
+
+    /// Eigenvalue ratio `λ_max / λ_min` of `Q L Qᵀ` (the conditioning SDP's optimal value).
+    fn ratio(f: &Framework) -> f64 {
+        f.eigenvalues()[f.agents() - 1] / f.stress_gap()
+    }
+
+    fn opts(solver: sdp::SdpSolver) -> sdp::SdpOptions {
+        sdp::SdpOptions {
+            solver,
+            ..sdp::SdpOptions::default()
+        }
+    }
+
+    /// Both solvers approach the same optimum `κ*` from the feasible side and stop at a relative
+    /// duality gap of 1e-6: the IPM on `s = 1/κ` (strictly feasible iterates), Clarabel on
+    /// `t = κ` in the form `min t` s.t. `I ⪯ Q L Qᵀ ⪯ t I` (primal residual ≤ 1e-8, which moves
+    /// the eigenvalues by ~1e-8 relative). So each ratio lies within ≈ 1e-6 κ* of `κ*` and the
+    /// two within ≈ 2e-6 of each other; we assert 5e-6 relative (measured: ≤ 1e-7).
+    const AGREE: f64 = 5e-6;
+
+    #[test]
+    fn clarabel_sdp_passes_every_check_and_agrees_with_the_ipm() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+        let mut cands = candidates();
+        cands.push(generators::trilateration(
+            20,
+            3,
+            5,
+            &mut Xoshiro256PlusPlus::seed_from_u64(11),
+        ));
+        for c in cands {
+            let t = Instant::now();
+            let ipm = sdp::design(&c, &opts(sdp::SdpSolver::Ipm)).unwrap();
+            let t_ipm = t.elapsed();
+            let t = Instant::now();
+            let cl = sdp::design(&c, &opts(sdp::SdpSolver::Clarabel))
+                .unwrap_or_else(|e| panic!("{}: {e}", c.name));
+            let t_cl = t.elapsed();
+            let f = &cl.framework;
+            let report = CheckReport::from_framework(f);
+            assert!(report.passed(), "{}:\n{report}", c.name);
+            assert!(report.universally_rigid() && report.equilibrium() && report.psd());
+            assert_eq!(report.rank, f.agents() - f.dim() - 1);
+            assert!((report.stress_gap() - 1.0).abs() < 1e-9);
+            let (z, z0) = simulate(f, &mut rng);
+            let a = affine_basis(f);
+            let proj = &a * (a.transpose() * &a).try_inverse().unwrap() * a.transpose();
+            assert!((&z - &proj * &z0).amax() < 1e-8 * z0.amax(), "{}", c.name);
+
+            let (ki, kc) = (ratio(&ipm.framework), ratio(f));
+            let rel = (kc - ki).abs() / ki;
+            eprintln!(
+                "{}: ratio ipm {ki:.9} ({} steps, {t_ipm:.2?}), clarabel {kc:.9} ({} iterations, \
+                 {t_cl:.2?}), relative difference {rel:.1e}",
+                c.name, ipm.newton_steps, cl.newton_steps
+            );
+            assert!(rel < AGREE, "{}: {ki} vs {kc}", c.name);
+        }
+    }
+
+    #[test]
+    fn clarabel_thesis_gap_matches_the_ipm() {
+        let mk = |solver| sdp::SdpOptions {
+            objective: sdp::SdpObjective::ThesisGap {
+                lambda_bar: 100.0,
+                weight_bound: 1.0,
+            },
+            ..opts(solver)
+        };
+        let c = generators::hexagon_candidate();
+        let ipm = sdp::design(&c, &mk(sdp::SdpSolver::Ipm)).unwrap();
+        let cl = sdp::design(&c, &mk(sdp::SdpSolver::Clarabel)).unwrap();
+        let r = CheckReport::from_framework(&cl.framework);
+        assert!(r.passed(), "{r}");
+        // Weight bound respected up to Clarabel's feasibility tolerance (1e-8).
+        assert!(cl.framework.weights().iter().all(|w| w.abs() <= 1.0 + 1e-7));
+        // Same optimal λ: IPM relative gap 1e-6, Clarabel gap 1e-6 relative to max(1, λ).
+        let (gi, gc) = (ipm.framework.stress_gap(), r.stress_gap());
+        eprintln!("thesis gap: ipm {gi:.9}, clarabel {gc:.9}");
+        assert!((gi - gc).abs() <= 5e-6 * gi.max(1.0), "{gi} vs {gc}");
+    }
+
+    #[test]
+    fn clarabel_sparse_design_passes_every_check() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(2024);
+        let c = generators::random50(generators::Density::Sparse, &mut rng);
+        let t = Instant::now();
+        let ipm = sparse::design(&c, &sparse::SparseOptions::default()).unwrap();
+        let t_ipm = t.elapsed();
+        let t = Instant::now();
+        let cl = sparse::design(
+            &c,
+            &sparse::SparseOptions {
+                solver: sdp::SdpSolver::Clarabel,
+                ..sparse::SparseOptions::default()
+            },
+        )
+        .unwrap();
+        let t_cl = t.elapsed();
+        let f = &cl.framework;
+        let report = CheckReport::from_framework(f);
+        assert!(report.passed(), "{report}");
+        assert!((report.stress_gap() - 1.0).abs() < 1e-9);
+        let kept = f.graph().links().len();
+        assert!(kept < c.links.len(), "{kept} of {}", c.links.len());
+        assert!(f.graph().links().iter().all(|l| c.links.contains(l)));
+        let (ki, kc) = (ratio(&ipm.framework), ratio(f));
+        let ni = ipm.framework.graph().links().len();
+        eprintln!(
+            "sparse 50: ipm {ni} links, ratio {ki:.6} ({t_ipm:.2?}); clarabel {kept} links, \
+             ratio {kc:.6} ({t_cl:.2?})"
+        );
+        // The ℓ1 optimum need not be unique, so the supports may differ; when they agree, the
+        // polished designs are the same conditioning SDP on the same graph.
+        if ipm.framework.graph().links() == f.graph().links() {
+            assert!((kc - ki).abs() < AGREE * ki, "{ki} vs {kc}");
+        }
+    }
+
+    #[test]
+    fn clarabel_rejects_flexible_frameworks_with_the_reason() {
+        let sdp_opts = opts(sdp::SdpSolver::Clarabel);
+        let sparse_opts = sparse::SparseOptions {
+            solver: sdp::SdpSolver::Clarabel,
+            ..sparse::SparseOptions::default()
+        };
+        let run = |c: &Candidate| {
+            [
+                sdp::design(c, &sdp_opts).unwrap_err(),
+                sparse::design(c, &sparse_opts).unwrap_err(),
+            ]
+        };
+        let cycle: Vec<(usize, usize)> = (0..10).map(|i| (i, (i + 1) % 10)).collect();
+        for err in run(&hexagon_with(cycle)) {
+            assert!(
+                matches!(&err, DesignError::NotUniversallyRigid(s) if s.contains("no nonzero equilibrium stress")),
+                "{err}"
+            );
+        }
+        let c = generators::hexagon_candidate();
+        let links: Vec<_> = c
+            .links
+            .iter()
+            .copied()
+            .filter(|&(i, j)| !(j == 9 && (i == 0 || i == 2 || i == 3)))
+            .collect();
+        for err in run(&hexagon_with(links)) {
+            assert!(
+                matches!(&err, DesignError::NotUniversallyRigid(s) if s.contains("no positive semidefinite stress of rank N − D − 1 = 7")),
+                "{err}"
+            );
+        }
+    }
+}

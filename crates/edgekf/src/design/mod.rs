@@ -29,6 +29,8 @@
 //!   multiagent formation control", IEEE TAC 2019.
 
 pub mod checks;
+#[cfg(feature = "clarabel")]
+mod conic;
 pub mod generators;
 mod ipm;
 pub mod sdp;
@@ -42,12 +44,15 @@ use crate::graph::GraphError;
 
 pub use checks::{check, CheckReport};
 pub use generators::Candidate;
-pub use sdp::{SdpObjective, SdpOptions};
+pub use sdp::{SdpObjective, SdpOptions, SdpSolver};
 pub use sparse::SparseOptions;
 
 /// Why a solver stopped without an answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolverStatus {
+    /// Clarabel (feature `clarabel`) stopped with this status (its name, e.g.
+    /// `InsufficientProgress`, `MaxIterations`, `NumericalError`) instead of `Solved`.
+    Clarabel(&'static str),
     /// The Newton system was not positive definite (numerical breakdown).
     NumericalBreakdown,
     /// The iteration limit was reached before the requested accuracy.
@@ -59,6 +64,7 @@ pub enum SolverStatus {
 impl std::fmt::Display for SolverStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
+            SolverStatus::Clarabel(status) => return write!(f, "Clarabel status {status}"),
             SolverStatus::NumericalBreakdown => {
                 "numerical breakdown (Newton system not positive definite)"
             }
@@ -95,7 +101,7 @@ pub enum DesignError {
     #[error("not universally rigid: {0}")]
     NotUniversallyRigid(String),
     /// The solver stopped without an answer.
-    #[error("solver failure: {status} after {iterations} Newton steps")]
+    #[error("solver failure: {status} after {iterations} iterations")]
     Solver {
         /// Why it stopped.
         status: SolverStatus,
@@ -111,7 +117,8 @@ pub struct Design {
     pub framework: Framework,
     /// Method name (`sdp`, `yang`, `sparse`).
     pub method: &'static str,
-    /// Newton steps of the interior-point solver (0 for closed-form designs).
+    /// Newton steps of the interior-point solver (Clarabel: its iterations; 0 for closed-form
+    /// designs).
     pub newton_steps: usize,
     /// Candidate links offered to the design (the Yang construction ignores them and designs
     /// its own graph).

@@ -1,4 +1,6 @@
-//! The thesis stress SDP (3.5), solved by the tailored interior-point method of `ipm`.
+//! The thesis stress SDP (3.5), solved by the tailored interior-point method of `ipm` (default,
+//! pure Rust) or, with the opt-in feature `clarabel`, by the Clarabel conic solver
+//! ([`SdpSolver`]).
 //!
 //! Thesis (3.5) reads
 //! ```text
@@ -24,6 +26,8 @@
 
 use nalgebra::DVector;
 
+#[cfg(feature = "clarabel")]
+use super::conic;
 use super::ipm::{self, Mode, Problem};
 use super::{finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
 
@@ -41,6 +45,18 @@ pub enum SdpObjective {
     },
 }
 
+/// Which solver runs the stress SDPs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SdpSolver {
+    /// The tailored log-barrier interior-point method (pure Rust, always available).
+    #[default]
+    Ipm,
+    /// The Clarabel conic interior-point solver (feature `clarabel`; links the system
+    /// BLAS/LAPACK).
+    #[cfg(feature = "clarabel")]
+    Clarabel,
+}
+
 /// Options of [`design`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SdpOptions {
@@ -48,6 +64,8 @@ pub struct SdpOptions {
     pub objective: SdpObjective,
     /// Relative accuracy of the optimal value (duality gap over value).
     pub rel_tol: f64,
+    /// Solver.
+    pub solver: SdpSolver,
 }
 
 impl Default for SdpOptions {
@@ -57,9 +75,16 @@ impl Default for SdpOptions {
             // 1e-6: the optimal eigenvalue ratio to six digits, far finer than any effect on
             // the closed loop.
             rel_tol: 1e-6,
+            solver: SdpSolver::Ipm,
         }
     }
 }
+
+/// Clarabel's duality-gap tolerance for the conditioning SDP. Clarabel receives it in the form
+/// `min t` s.t. `I ⪯ Q L Qᵀ ⪯ t I` (see `conic`), whose objective `t = κ* ≥ 1` makes its relative
+/// gap a relative accuracy of the optimal ratio: the IPM's default 1e-6.
+#[cfg(feature = "clarabel")]
+pub(crate) const CLARABEL_GAP: f64 = 1e-6;
 
 /// Largest eigenvalue ratio we accept as "nonzero": a stress with `λ_max / λ_min > 1e8` cannot
 /// be told from a singular one by the rank test (relative tolerance 1e-9 N) of the checks.
@@ -70,6 +95,7 @@ pub const MAX_CONDITION: f64 = 1e8;
 pub(crate) fn best_conditioned(
     space: &StressSpace,
     expected_rank: usize,
+    solver: SdpSolver,
 ) -> Result<(DVector<f64>, f64, usize), DesignError> {
     if space.z.ncols() == 0 {
         return Err(DesignError::NotUniversallyRigid(
@@ -83,19 +109,34 @@ pub(crate) fn best_conditioned(
     x0[m] = -1.0;
     let floor = 1.0 / MAX_CONDITION;
     let rel = SdpOptions::default().rel_tol;
-    let out = ipm::solve(&problem, x0, |x, gap| {
-        let s = x[m];
-        (s > 0.0 && gap <= rel * s) || s + gap < floor
-    })?;
-    let s = out.x[m];
+    let (x, gap, steps) = match solver {
+        SdpSolver::Ipm => {
+            let out = ipm::solve(&problem, x0, |x, gap| {
+                let s = x[m];
+                (s > 0.0 && gap <= rel * s) || s + gap < floor
+            })?;
+            (out.x, out.gap, out.newton_steps)
+        }
+        #[cfg(feature = "clarabel")]
+        SdpSolver::Clarabel => {
+            // x = (c, t) with I ⪯ M(c) ⪯ t I: the same weights up to the scale 1/t, s = 1/t.
+            let out = conic::solve(space, &Mode::Condition, CLARABEL_GAP)?;
+            let mut x = out.x;
+            let t = x[m];
+            x /= t;
+            x[m] = 1.0 / t;
+            (x, out.gap / (t * t), out.iterations)
+        }
+    };
+    let s = x[m];
     if s < floor {
         return Err(DesignError::NotUniversallyRigid(format!(
             "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph \
              (the best λ_min/λ_max of Q L Qᵀ is {:.1e} ≤ {floor:.0e})",
-            (s + out.gap).max(0.0)
+            (s + gap).max(0.0)
         )));
     }
-    Ok((problem.weights(&out.x), 1.0 / s, out.newton_steps))
+    Ok((problem.weights(&x), 1.0 / s, steps))
 }
 
 /// [`best_conditioned`], with the closed-form optimum on complete graphs.
@@ -105,12 +146,13 @@ pub(crate) fn conditioned(
     links: &[(usize, usize)],
     space: &StressSpace,
     expected_rank: usize,
+    solver: SdpSolver,
 ) -> Result<(DVector<f64>, f64, usize), DesignError> {
     let n = flat.len() / dim;
     if links.len() == n * (n - 1) / 2 {
         Ok((complete_graph_optimum(flat, dim, links), 1.0, 0))
     } else {
-        best_conditioned(space, expected_rank)
+        best_conditioned(space, expected_rank, solver)
     }
 }
 
@@ -158,7 +200,14 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
     const DROP: f64 = 1e-10;
     match options.objective {
         SdpObjective::Conditioning => {
-            let (w, _, steps) = conditioned(&flat, candidate.dim, &links, &space, expected_rank)?;
+            let (w, _, steps) = conditioned(
+                &flat,
+                candidate.dim,
+                &links,
+                &space,
+                expected_rank,
+                options.solver,
+            )?;
             finish(
                 candidate,
                 &links,
@@ -186,29 +235,40 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                     "the graph carries no nonzero equilibrium stress".into(),
                 ));
             }
-            let problem = Problem::new(
-                &space,
-                Mode::Gap {
-                    lambda_bar,
-                    wmax: weight_bound,
-                },
-            );
+            let mode = Mode::Gap {
+                lambda_bar,
+                wmax: weight_bound,
+            };
             let m = space.z.ncols();
-            let mut x0 = DVector::zeros(m + 1);
-            x0[m] = -lambda_bar.min(1.0);
             let scale = lambda_bar.min(weight_bound);
             let floor = scale / MAX_CONDITION;
-            let rel = options.rel_tol;
-            let out = ipm::solve(&problem, x0, |x, gap| {
-                let s = x[m];
-                (s > 0.0 && gap <= rel * s) || s + gap < floor
-            })?;
-            if out.x[m] < floor {
+            let (x, steps) = match options.solver {
+                SdpSolver::Ipm => {
+                    let problem = Problem::new(&space, mode);
+                    let mut x0 = DVector::zeros(m + 1);
+                    x0[m] = -lambda_bar.min(1.0);
+                    let rel = options.rel_tol;
+                    let out = ipm::solve(&problem, x0, |x, gap| {
+                        let s = x[m];
+                        (s > 0.0 && gap <= rel * s) || s + gap < floor
+                    })?;
+                    (out.x, out.newton_steps)
+                }
+                #[cfg(feature = "clarabel")]
+                SdpSolver::Clarabel => {
+                    // Clarabel's gap is relative to max(1, |λ|), i.e. absolute for λ < 1: at
+                    // most rel_tol (1e-6), and never coarser than the acceptance floor allows.
+                    let tol = options.rel_tol.min(CLARABEL_GAP.max(1e-2 * floor));
+                    let out = conic::solve(&space, &mode, tol)?;
+                    (out.x, out.iterations)
+                }
+            };
+            if x[m] < floor {
                 return Err(DesignError::NotUniversallyRigid(format!(
                     "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph"
                 )));
             }
-            let w = problem.weights(&out.x);
+            let w = &space.z * x.rows(0, m);
             finish(
                 candidate,
                 &links,
@@ -218,7 +278,7 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                     drop_rel: DROP,
                     normalise: false,
                     method: "sdp",
-                    newton_steps: out.newton_steps,
+                    newton_steps: steps,
                 },
             )
         }
@@ -238,7 +298,7 @@ mod tests {
         let c = generators::complete("k7", 2, config);
         let flat: Vec<f64> = c.config.iter().flatten().copied().collect();
         let space = StressSpace::new(&flat, 2, &c.links).unwrap();
-        let (w_ipm, ratio, steps) = best_conditioned(&space, 4).unwrap();
+        let (w_ipm, ratio, steps) = best_conditioned(&space, 4, SdpSolver::Ipm).unwrap();
         assert!(steps > 0);
         // Optimal ratio 1; the solver stops at relative gap 1e-6 on s = 1/ratio.
         assert!((ratio - 1.0).abs() < 1e-5, "{ratio}");

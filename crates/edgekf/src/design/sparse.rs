@@ -22,8 +22,10 @@
 
 use nalgebra::DVector;
 
+#[cfg(feature = "clarabel")]
+use super::conic;
 use super::ipm::{self, Mode, Problem};
-use super::sdp::{best_conditioned, conditioned};
+use super::sdp::{best_conditioned, conditioned, SdpSolver};
 use super::{finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
 use crate::graph::Graph;
 
@@ -34,6 +36,8 @@ pub struct SparseOptions {
     pub slack: f64,
     /// Relative weight below which a link is dropped.
     pub threshold: f64,
+    /// Solver of the conditioning, ℓ1 and polishing SDPs.
+    pub solver: SdpSolver,
 }
 
 impl Default for SparseOptions {
@@ -45,6 +49,7 @@ impl Default for SparseOptions {
             // The ℓ1 solve is stopped at a relative duality gap of 1e-7, so weights that the exact
             // optimum sets to zero come out ≲ 1e-6 of the largest; 1e-4 separates them safely.
             threshold: 1e-4,
+            solver: SdpSolver::Ipm,
         }
     }
 }
@@ -68,7 +73,14 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     let links = graph.links().to_vec();
     let space = StressSpace::new(&flat, candidate.dim, &links)?;
     let expected_rank = n - candidate.dim - 1;
-    let (w0, kappa0, steps0) = conditioned(&flat, candidate.dim, &links, &space, expected_rank)?;
+    let (w0, kappa0, steps0) = conditioned(
+        &flat,
+        candidate.dim,
+        &links,
+        &space,
+        expected_rank,
+        options.solver,
+    )?;
     // Scale the start so that its spectrum [λ_min, κ0 λ_min] sits strictly inside [1, κ̄]:
     // λ_min = √slack > 1 and κ0 √slack < slack κ0 = κ̄.
     let eig = space.projected(w0.as_slice()).symmetric_eigen().eigenvalues;
@@ -99,12 +111,28 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
             k += 1;
         }
     }
-    let out = ipm::solve(&problem, x0, |x, gap| {
-        gap <= 1e-7 * problem.objective(x).abs().max(f64::MIN_POSITIVE)
-    })?;
-    let w = problem.weights(&out.x);
+    let (x, l1_steps) = match options.solver {
+        SdpSolver::Ipm => {
+            let out = ipm::solve(&problem, x0, |x, gap| {
+                gap <= 1e-7 * problem.objective(x).abs().max(f64::MIN_POSITIVE)
+            })?;
+            (out.x, out.newton_steps)
+        }
+        #[cfg(feature = "clarabel")]
+        SdpSolver::Clarabel => {
+            // Clarabel's default gap tolerance, 1e-8 relative to max(1, ℓ1 norm): at least as
+            // tight as the IPM's 1e-7 relative.
+            let mode = Mode::L1 {
+                kappa: kappa_bar,
+                penalised: penalised.clone(),
+            };
+            let out = conic::solve(&space, &mode, 1e-8)?;
+            (out.x, out.iterations)
+        }
+    };
+    let w = problem.weights(&x);
     let wmax = w.amax();
-    let mut steps = steps0 + out.newton_steps;
+    let mut steps = steps0 + l1_steps;
     let mut threshold = options.threshold;
     for _ in 0..4 {
         let support: Vec<(usize, usize)> = links
@@ -117,7 +145,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
             .map_err(DesignError::from)
             .and_then(|_| StressSpace::new(&flat, candidate.dim, &support))
             .and_then(|sub| {
-                let (ws, _, st) = best_conditioned(&sub, expected_rank)?;
+                let (ws, _, st) = best_conditioned(&sub, expected_rank, options.solver)?;
                 Ok((sub, ws, st))
             });
         match polished {
