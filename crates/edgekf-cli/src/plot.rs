@@ -162,6 +162,26 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
     Ok(())
 }
 
+/// The legend of every line figure: upper right, on a translucent white box.
+fn draw_legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    font_size: u32,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font_size))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(draw_err)?;
+    Ok(())
+}
+
 /// Mean curves with ±1σ bands (values mapped to the axis by `map`) and the legend.
 fn draw_bands<'a, DB: DrawingBackend + 'a>(
     chart: &mut ChartContext<
@@ -198,15 +218,7 @@ fn draw_bands<'a, DB: DrawingBackend + 'a>(
             .label(l.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(draw_err)?;
-    Ok(())
+    draw_legend(chart, 16)
 }
 
 fn inputs_plot(
@@ -294,14 +306,7 @@ fn inputs_plot(
                     PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
                 });
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(draw_err)?;
+        draw_legend(&mut chart, 15)?;
     }
     root.present().map_err(draw_err)?;
     Ok(())
