@@ -3,8 +3,9 @@
 //!
 //! A framework `(G, p)` with a generalized Laplacian `L = B diag(w) Bᵀ` (thesis eq. 3.4) drives the
 //! followers to an affine image of `p` when `L` is positive semidefinite with rank `N − D − 1` and
-//! `(L ⊗ I_D) p = 0` (thesis Theorems 3.1–3.2). [`Framework::new`] verifies exactly that, and that
-//! the `D + 1` leaders (thesis §3.5, Theorem 3.3) form a complete subgraph.
+//! `(L ⊗ I_D) p = 0` (thesis Theorems 3.1–3.2). [`Framework::new`] verifies exactly that, and checks
+//! the leaders (none or `D + 1` distinct agents; thesis §3.5, Theorem 3.3); the distance-based leader law also needs them to
+//! form a complete subgraph ([`Framework::check_leader_clique`]).
 //!
 //! The weight design problem itself (thesis SDP (3.5) and others) is a separate concern.
 
@@ -103,7 +104,7 @@ pub enum FrameworkError {
     #[error("leader {0} is listed twice")]
     DuplicateLeader(usize),
     /// Leaders are not mutually linked.
-    #[error("leaders {i} and {j} are not linked: the leaders must form a complete subgraph")]
+    #[error("leaders {i} and {j} are not linked: the distance-based leader law needs the leaders to form a complete subgraph")]
     LeadersNotComplete {
         /// First leader.
         i: usize,
@@ -361,6 +362,27 @@ impl Framework {
     pub fn stress_gap(&self) -> f64 {
         self.eigenvalues[self.dim + 1]
     }
+
+    /// Checks that the leaders are mutually linked: the thesis's distance-based leader law
+    /// (thesis §3.5) steers the leaders on their own edges to a congruent simplex, so it needs
+    /// them to form a complete subgraph. A stress does not depend on who leads, so
+    /// [`Framework::new`] does not ask for it; a scenario that uses the distance law does.
+    ///
+    /// # Errors
+    /// [`FrameworkError::LeadersNotComplete`] naming the first unlinked pair.
+    pub fn check_leader_clique(&self) -> Result<(), FrameworkError> {
+        for (k, &a) in self.leaders.iter().enumerate() {
+            for &b in &self.leaders[k + 1..] {
+                if !self.graph.has_link(a, b) {
+                    return Err(FrameworkError::LeadersNotComplete {
+                        i: a.min(b),
+                        j: a.max(b),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), FrameworkError> {
@@ -377,16 +399,6 @@ fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), Fra
         }
         if leaders[..k].contains(&a) {
             return Err(FrameworkError::DuplicateLeader(a));
-        }
-    }
-    for (k, &a) in leaders.iter().enumerate() {
-        for &b in &leaders[k + 1..] {
-            if !graph.has_link(a, b) {
-                return Err(FrameworkError::LeadersNotComplete {
-                    i: a.min(b),
-                    j: a.max(b),
-                });
-            }
         }
     }
     Ok(())
@@ -511,11 +523,11 @@ mod tests {
         let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
         let err = Framework::new("x", 2, &cfg, f.graph().links(), &neg, &[0, 1, 2]).unwrap_err();
         assert!(matches!(err, FrameworkError::NotPsd { .. }), "{err}");
-        let err =
-            Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 9]).unwrap_err();
+        let unlinked =
+            Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 9]).unwrap();
         assert_eq!(
-            err.to_string(),
-            "leaders 1 and 9 are not linked: the leaders must form a complete subgraph"
+            unlinked.check_leader_clique().unwrap_err().to_string(),
+            "leaders 1 and 9 are not linked: the distance-based leader law needs the leaders to form a complete subgraph"
         );
         let err =
             Framework::new("x", 2, &cfg, f.graph().links(), f.weights(), &[0, 1, 12]).unwrap_err();

@@ -467,6 +467,8 @@ impl Scenario {
         framework_file: Option<&FrameworkSpec>,
     ) -> Result<Self, ScenarioError> {
         let fw = build_framework(&spec.framework, framework_file)?;
+        fw.check_leader_clique()
+            .map_err(|e| framework_error("framework.leaders", e))?;
         let dim = fw.dim();
         let n = fw.agents();
         let s = &spec.sim;
@@ -634,6 +636,8 @@ impl Scenario {
         }
         let fw = Framework::new(r.name.clone(), dim, &r.config, &links, &lw, &r.leaders)
             .map_err(|e| framework_error("config/edges/weights/leaders", e))?;
+        fw.check_leader_clique()
+            .map_err(|e| framework_error("leaders", e))?;
         let expected: Vec<[usize; 2]> = fw.graph().edges().iter().map(|&(i, j)| [i, j]).collect();
         if expected != r.edges {
             return Err(err(
