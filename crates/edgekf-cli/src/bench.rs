@@ -40,49 +40,37 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         "{:<10} {:>10} {:>16} {:>14}",
         "estimator", "wall [s]", "agent-steps/s", "ns/agent-step"
     );
-    let kinds: [EstimatorEntry; 7] = [
-        EstimatorEntry::Name("oracle".into()),
-        EstimatorEntry::Name("none".into()),
-        EstimatorEntry::Name("mle".into()),
-        EstimatorEntry::Table(edgekf::scenario::EstimatorTable {
-            kind: "mmse".into(),
-            label: None,
-            samples: None,
-            prior_var: Some(1e-3),
-            p_fail: None,
-        }),
-        EstimatorEntry::Name("rkf".into()),
-        EstimatorEntry::Name("jrkf".into()),
-        EstimatorEntry::Name("crkf".into()),
+    let kinds: Vec<EstimatorEntry> = vec![
+        EstimatorEntry::kind("oracle"),
+        EstimatorEntry::kind("none"),
+        EstimatorEntry::kind("mle"),
+        EstimatorEntry::kind("mmse").with("prior_var", 1e-3),
+        EstimatorEntry::kind("rkf"),
+        EstimatorEntry::kind("jrkf"),
+        EstimatorEntry::kind("crkf"),
     ];
-    for k in kinds
+    let mut sets: Vec<(String, Vec<EstimatorEntry>)> = kinds
         .iter()
-        .cloned()
-        .chain(std::iter::once(EstimatorEntry::Name("all".into())))
-    {
+        .map(|k| {
+            (
+                k.0["kind"].as_str().unwrap_or("?").to_string(),
+                vec![k.clone()],
+            )
+        })
+        .collect();
+    sets.push(("all six".into(), kinds[1..].to_vec()));
+    for (label, set) in sets {
         let mut spec = base.clone();
         spec.plots.clear();
-        let label = match &k {
-            EstimatorEntry::Name(n) if n == "all" => {
-                spec.estimators = kinds[1..].to_vec();
-                "all six".to_string()
-            }
-            EstimatorEntry::Name(n) => {
-                spec.estimators = vec![k.clone()];
-                n.clone()
-            }
-            EstimatorEntry::Table(t) => {
-                spec.estimators = vec![k.clone()];
-                t.kind.clone()
-            }
-        };
+        spec.estimators = set;
         spec.sim.steps = args.steps;
         spec.sim.runs = args.runs;
         let sc = edgekf::scenario::Scenario::from_spec(&spec, None)?;
         let t = Instant::now();
-        let _ = pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet));
+        pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
         let wall = t.elapsed().as_secs_f64();
-        let agent_steps = (sc.framework.agents() * sc.runs * sc.steps * sc.estimators.len()) as f64;
+        let agent_steps =
+            (sc.framework().agents() * sc.runs() * sc.steps() * sc.estimators().len()) as f64;
         println!(
             "{label:<10} {wall:>10.3} {:>16.3e} {:>14.1}",
             agent_steps / wall,

@@ -1,10 +1,15 @@
 //! The `edgekf` command-line program: a thin shell around the `edgekf` library.
 //!
-//! - `edgekf run SCENARIO --out DIR`: one scenario file (TOML, or a resolved `scenario.json`);
+//! - `edgekf run SCENARIO --out DIR`: one scenario file (TOML, or a resolved `scenario.json`),
+//!   optionally one shard of its runs (`--shard I/K`);
+//! - `edgekf merge D1 … DK --out DIR`: the shards' partial results into the study's outputs;
 //! - `edgekf reproduce NAME… | all --out DIR`, `edgekf reproduce --list`: the papers' figures;
 //! - `edgekf design`: stress design and rigidity checks of a framework;
 //! - `edgekf fit-ar`: the AR input model of chapter 6 from trial runs;
 //! - `edgekf bench`: closed-loop speed per estimator and the wall time of `reproduce`.
+//!
+//! Results go to files (written atomically, only after the study succeeded) and a short summary
+//! to stdout; logs and progress go to stderr.
 
 mod bench;
 mod design;
@@ -12,6 +17,7 @@ mod io;
 mod plot;
 mod registry;
 mod slam;
+mod summary;
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -21,7 +27,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use edgekf::scenario::Scenario;
-use edgekf::sim::{self, Observer, Results};
+use edgekf::sim::{self, Observer, Outcome, Results};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 #[derive(Parser, Debug)]
@@ -37,21 +43,39 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run one scenario file and write scenario.json, metrics.csv, paths.csv and its figures.
+    /// Run one scenario file and write scenario.json, metrics.csv, paths.csv, status.csv and its
+    /// figures; print the steady-state summary.
     Run {
         /// Scenario file: TOML, or a resolved scenario.json.
         scenario: PathBuf,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
+        /// Run only shard I of K (contiguous run ranges, the same per-run seeds) and write
+        /// partial results for `edgekf merge`.
+        #[arg(long, value_parser = parse_shard)]
+        shard: Option<(usize, usize)>,
         #[command(flatten)]
         over: Overrides,
+    },
+    /// Merge the partial results of `run --shard I/K` into the outputs of the whole study
+    /// (metrics.csv byte-identical to the unsharded run's).
+    Merge {
+        /// The shards' output directories, in any order.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
     },
     /// Reproduce the papers' figures (shipped scenarios).
     Reproduce {
         /// Figure names (see --list), or `all`.
         names: Vec<String>,
-        /// Output directory (one subdirectory per figure).
+        /// Output directory (one subdirectory per simulation, its figures beside its data).
         #[arg(long, required_unless_present = "list")]
         out: Option<PathBuf>,
         /// Print the reproducible names, one a line.
@@ -68,11 +92,10 @@ enum Command {
         /// Scenario file (its estimators are simulated; the fit uses one of them).
         scenario: PathBuf,
         /// AR order p.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = positive)]
         order: usize,
-        /// First step of the fitting window (the thesis's model is stationary, so skip the
-        /// transient if you want a steady-state model).
-        #[arg(long, default_value_t = 1)]
+        /// First step of the fitting window (skip the transient for a steady-state model).
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = positive)]
         from: usize,
         /// Label of the estimator whose closed loop generates the inputs (default: `rkf` if
         /// present, else the first).
@@ -85,24 +108,88 @@ enum Command {
     Bench(bench::BenchArgs),
 }
 
+/// Exit code when an estimator diverged (1: an error, 2: a usage error).
+const DIVERGED: u8 = 3;
+
+/// A whole number ≥ 1, with a message naming the problem.
+fn positive(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<i128>() {
+        Ok(v) if v >= 1 && v <= usize::MAX as i128 => Ok(v as usize),
+        Ok(v) => Err(format!("must be a whole number ≥ 1, got {v}")),
+        Err(_) => Err(format!("must be a whole number ≥ 1, got `{s}`")),
+    }
+}
+
+/// A seed: a whole number ≥ 0.
+fn seed(s: &str) -> Result<u64, String> {
+    s.trim()
+        .parse::<u64>()
+        .map_err(|_| format!("must be a whole number in 0..=2^64−1, got `{s}`"))
+}
+
+/// A positive number of hours.
+fn hours(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("must be a number of hours > 0, got `{s}`")),
+    }
+}
+
+/// `I/K` with 1 ≤ I ≤ K.
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (i, k) = s
+        .split_once('/')
+        .ok_or_else(|| format!("must be I/K (shard I of K), got `{s}`"))?;
+    let (i, k) = (positive(i)?, positive(k)?);
+    if i > k {
+        return Err(format!("shard {i} of {k}: I must lie in 1..={k}"));
+    }
+    Ok((i, k))
+}
+
 /// Overrides of the scenario file.
-#[derive(Args, Debug, Clone, Default)]
+#[derive(Args, Debug, Clone)]
 pub struct Overrides {
     /// Monte Carlo runs.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
     pub runs: Option<usize>,
     /// Time steps.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
     pub steps: Option<usize>,
     /// Seed.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = seed)]
     pub seed: Option<u64>,
     /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
     pub threads: Option<usize>,
     /// Report every this many steps.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
     pub every: Option<usize>,
+    /// Run a closed loop past its stability bound, and exit with success even when an estimator
+    /// diverges (to show the divergence).
+    #[arg(long)]
+    pub allow_divergence: bool,
+    /// Refuse a study estimated to take longer than this many hours.
+    #[arg(long, default_value_t = 24.0, value_parser = hours)]
+    pub max_hours: f64,
+    /// Print the summary as JSON (for scripts) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl Default for Overrides {
+    fn default() -> Self {
+        Self {
+            runs: None,
+            steps: None,
+            seed: None,
+            threads: None,
+            every: None,
+            allow_divergence: false,
+            max_hours: 24.0,
+            json: false,
+        }
+    }
 }
 
 /// Progress on stderr; hidden when stderr is not a terminal.
@@ -132,7 +219,7 @@ impl Observer for Progress {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match dispatch(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("edgekf: error: {e:#}");
             ExitCode::FAILURE
@@ -143,19 +230,17 @@ fn main() -> ExitCode {
 fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
-        if t == 0 {
-            bail!("flag `--threads`: must be at least 1");
-        }
         b = b.num_threads(t);
     }
     b.build().context("cannot start the worker threads")
 }
 
-fn dispatch(cli: Cli) -> Result<()> {
+fn dispatch(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Run {
             scenario,
             out,
+            shard,
             over,
         } => {
             let text = fs::read_to_string(&scenario)
@@ -167,22 +252,59 @@ fn dispatch(cli: Cli) -> Result<()> {
                         || over.steps.is_some()
                         || over.seed.is_some()
                         || over.every.is_some()
+                        || shard.is_some()
                     {
-                        bail!("{source}: --runs, --steps, --seed and --every apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
+                        bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
                     }
-                    slam::run_text(&source, &text, &out)?;
+                    slam::run_text(&source, &text, &out, over.json)?;
+                    Ok(ExitCode::SUCCESS)
                 }
                 io::Kind::Filters => {
                     let sc = io::load_scenario(&source, &text, scenario.parent())?;
                     let sc = apply_overrides(sc, &over).with_context(|| source.clone())?;
                     let pool = pool(over.threads)?;
-                    let res = pool.install(|| simulate(&sc));
-                    write_outputs(&out, &sc, &res, None)?;
-                    eprintln!("wrote {}", out.display());
+                    let range = match shard {
+                        Some((i, k)) => {
+                            if k > sc.runs() {
+                                bail!(
+                                    "flag `--shard`: {k} shards for {} runs leaves some shards empty; use at most {} shards",
+                                    sc.runs(),
+                                    sc.runs()
+                                );
+                            }
+                            sim::shard_range(sc.runs(), i, k)
+                        }
+                        None => 0..sc.runs(),
+                    };
+                    check_cost(&sc, range.len(), pool.current_num_threads(), &over)?;
+                    let res = pool.install(|| simulate(&sc, range))?;
+                    let mut st = io::Staged::new(&out)?;
+                    match shard {
+                        Some(s) => {
+                            stage_scenario(&mut st, &sc)?;
+                            io::write_shard(&mut st, &res, s)?;
+                            st.commit()?;
+                            eprintln!(
+                                "wrote shard {}/{} (runs {}..{}) to {}",
+                                s.0,
+                                s.1,
+                                res.runs.start,
+                                res.runs.end,
+                                out.display()
+                            );
+                            Ok(ExitCode::SUCCESS)
+                        }
+                        None => {
+                            stage_outputs(&mut st, &sc, &res, None)?;
+                            st.commit()?;
+                            eprintln!("wrote {}", out.display());
+                            Ok(report(&sc, &res, &over))
+                        }
+                    }
                 }
             }
-            Ok(())
         }
+        Command::Merge { parts, out, json } => merge(&parts, &out, json),
         Command::Reproduce {
             names,
             out,
@@ -193,9 +315,9 @@ fn dispatch(cli: Cli) -> Result<()> {
                 for e in registry::ENTRIES {
                     println!("{}\t{}", e.name, e.description);
                 }
-                return Ok(());
+                return Ok(ExitCode::SUCCESS);
             }
-            let out = out.expect("clap requires --out without --list");
+            let out = out.context("flag `--out`: required without `--list`")?;
             reproduce(&names, &out, &over)
         }
         Command::FitAr {
@@ -204,10 +326,85 @@ fn dispatch(cli: Cli) -> Result<()> {
             from,
             estimator,
             over,
-        } => fit_ar(&scenario, order, from, estimator.as_deref(), &over),
-        Command::Bench(args) => bench::run(&args),
-        Command::Design(args) => design::run(&args),
+        } => {
+            fit_ar(&scenario, order, from, estimator.as_deref(), &over).map(|()| ExitCode::SUCCESS)
+        }
+        Command::Bench(args) => bench::run(&args).map(|()| ExitCode::SUCCESS),
+        Command::Design(args) => design::run(&args).map(|()| ExitCode::SUCCESS),
     }
+}
+
+/// Prints the summary; the exit code says whether every estimator completed.
+fn report(sc: &Scenario, res: &Results, over: &Overrides) -> ExitCode {
+    let s = summary::summarise(sc.name(), res);
+    if over.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&s).unwrap_or_else(|_| "{}".into())
+        );
+    } else {
+        print!("{}", summary::table(&s));
+    }
+    let diverged: Vec<&str> = res
+        .estimators
+        .iter()
+        .filter(|e| matches!(e.outcome, Outcome::Diverged { .. }))
+        .map(|e| e.label.as_str())
+        .collect();
+    if diverged.is_empty() || sc.allow_divergence() {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "edgekf: error: {} diverged (see status.csv); pass --allow-divergence to accept it",
+            diverged.join(", ")
+        );
+        ExitCode::from(DIVERGED)
+    }
+}
+
+/// Available memory from `/proc/meminfo` (Linux), in bytes.
+fn available_memory() -> Option<f64> {
+    let text = fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// Refuses a study that cannot fit in memory or would take longer than `--max-hours`, and
+/// announces a long one.
+fn check_cost(sc: &Scenario, runs: usize, threads: usize, over: &Overrides) -> Result<()> {
+    let c = sim::cost(sc, runs, threads);
+    if let Some(avail) = available_memory() {
+        if c.bytes > 0.8 * avail {
+            bail!(
+                "{}: this study needs about {} of memory ({} runs, {} reported steps of {} estimators) but {} is available; lower `runs`, raise `every`, or shard it (`--shard I/K`)",
+                sc.name(),
+                sim::cost::human_bytes(c.bytes),
+                runs,
+                sc.report_count(),
+                sc.estimators().len(),
+                sim::cost::human_bytes(avail)
+            );
+        }
+    }
+    if c.seconds > over.max_hours * 3600.0 {
+        bail!(
+            "{}: this study would take about {} on {threads} thread(s) ({} of it in computations shared by all runs, such as a centralised covariance); the limit is {} h (`--max-hours`). Lower `steps`, `runs` or the network size, drop the costliest estimator, or shard it",
+            sc.name(),
+            sim::cost::human_seconds(c.seconds),
+            sim::cost::human_seconds(c.shared_seconds),
+            over.max_hours
+        );
+    }
+    if c.seconds > 60.0 {
+        eprintln!(
+            "{}: estimated {} on {threads} thread(s), {} of memory",
+            sc.name(),
+            sim::cost::human_seconds(c.seconds),
+            sim::cost::human_bytes(c.bytes)
+        );
+    }
+    Ok(())
 }
 
 fn fit_ar(
@@ -217,58 +414,56 @@ fn fit_ar(
     label: Option<&str>,
     over: &Overrides,
 ) -> Result<()> {
-    if order == 0 {
-        bail!("flag `--order`: must be at least 1");
-    }
     let text =
         fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let source = path.display().to_string();
     let sc = io::load_scenario(&source, &text, path.parent())?;
     let sc = apply_overrides(sc, over).with_context(|| source.clone())?;
-    if from == 0 || from + order > sc.steps {
+    if from + order > sc.steps() {
         bail!(
             "flag `--from`: must lie in 1..={} for {} steps and order {order}",
-            sc.steps - order,
-            sc.steps
+            sc.steps().saturating_sub(order),
+            sc.steps()
         );
     }
     let e = match label {
         Some(l) => sc
-            .estimators
+            .estimators()
             .iter()
-            .position(|d| d.label == l)
+            .position(|d| d.label() == l)
             .with_context(|| {
                 format!("flag `--estimator`: `{l}` is not an estimator label of {source}")
             })?,
         None => sc
-            .estimators
+            .estimators()
             .iter()
-            .position(|d| d.label == "rkf")
+            .position(|d| d.label() == "rkf")
             .unwrap_or(0),
     };
     let pool = pool(over.threads)?;
+    check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
     let opt = sim::Options {
         input_lags: order,
         input_from: from,
     };
-    let total = (sc.runs * sc.steps) as u64;
+    let total = (sc.runs() * sc.steps()) as u64;
     let p = Progress::new(total, "fit-ar");
-    let res = pool.install(|| sim::run_with(&sc, &p, opt));
+    let res = pool.install(|| sim::run_with(&sc, &p, opt))?;
     p.0.finish_and_clear();
     let acov = &res.input_acov[e];
     let mut coeffs = vec![vec![0.0; acov.len()]; order];
     let mut noise = Vec::new();
     println!(
         "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{}`,",
-        sc.estimators[e].label
+        sc.estimators()[e].label()
     );
     println!(
         "# {} runs × {} agents, steps {from}..={} of {}, seed {}",
-        sc.runs,
-        sc.framework.agents(),
-        sc.steps,
+        sc.runs(),
+        sc.framework().agents(),
+        sc.steps(),
         source,
-        sc.seed
+        sc.seed()
     );
     for (d, r) in acov.iter().enumerate() {
         let (a, v) = edgekf::estimate::ar::yule_walker(r).with_context(|| {
@@ -310,40 +505,109 @@ fn fit_ar(
     Ok(())
 }
 
-fn apply_overrides(sc: Scenario, over: &Overrides) -> Result<Scenario> {
-    Ok(sc.with_overrides(over.runs, over.steps, over.seed, over.every)?)
+fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
+    if over.allow_divergence {
+        sc = sc.with_allow_divergence(true)?;
+    }
+    if let Some(r) = over.runs {
+        sc = sc.with_runs(r)?;
+    }
+    if let Some(s) = over.steps {
+        sc = sc.with_steps(s)?;
+    }
+    if let Some(s) = over.seed {
+        sc = sc.with_seed(s);
+    }
+    if let Some(e) = over.every {
+        sc = sc.with_every(e)?;
+    }
+    Ok(sc)
 }
 
-/// Runs a scenario with a progress bar.
-pub fn simulate(sc: &Scenario) -> Results {
-    let total = (sc.runs * sc.steps) as u64;
-    let p = Progress::new(total, &sc.name);
-    let res = sim::run(sc, &p);
+/// Runs the runs `range` of a scenario with a progress bar.
+pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results> {
+    let total = (range.len() * sc.steps()) as u64;
+    let p = Progress::new(total, sc.name());
+    let res = sim::run_range(sc, range, &p, sim::Options::default());
     p.0.finish_and_clear();
-    res
+    Ok(res?)
 }
 
-/// Writes scenario.json, metrics.csv, paths.csv and the figures (all of them, or `plots`).
-fn write_outputs(out: &Path, sc: &Scenario, res: &Results, plots: Option<&[&str]>) -> Result<()> {
-    fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+fn stage_scenario(st: &mut io::Staged, sc: &Scenario) -> Result<()> {
     let json =
         serde_json::to_string_pretty(&sc.to_resolved()).context("cannot serialise the scenario")?;
-    io::write_atomic(out, "scenario.json", json.as_bytes())?;
-    io::write_atomic(out, "metrics.csv", io::metrics_csv(res).as_bytes())?;
-    io::write_atomic(
-        out,
+    st.write("scenario.json", json.as_bytes())
+}
+
+/// Stages scenario.json, metrics.csv, paths.csv, status.csv and the figures (all, or `plots`).
+fn stage_outputs(
+    st: &mut io::Staged,
+    sc: &Scenario,
+    res: &Results,
+    plots: Option<&[&str]>,
+) -> Result<()> {
+    stage_scenario(st, sc)?;
+    st.write("metrics.csv", io::metrics_csv(res).as_bytes())?;
+    st.write(
         "paths.csv",
-        io::paths_csv(res, sc.framework.dim(), sc.framework.agents()).as_bytes(),
+        io::paths_csv(res, sc.framework().dim(), sc.framework().agents()).as_bytes(),
     )?;
-    for p in &sc.plots {
-        if plots.is_none_or(|want| want.contains(&p.file.as_str())) {
-            plot::render(out, p, sc, res)?;
+    st.write("status.csv", io::status_csv(res).as_bytes())?;
+    for p in sc.plots() {
+        if plots.is_none_or(|want| want.contains(&p.file())) {
+            let path = st.path(&format!("{}.png", p.file()));
+            plot::render(&path, p, sc, res)?;
         }
     }
     Ok(())
 }
 
-fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
+fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {
+    let mut scenario_text: Option<String> = None;
+    let mut results = Vec::new();
+    for dir in parts {
+        let sp = dir.join("scenario.json");
+        let text =
+            fs::read_to_string(&sp).with_context(|| format!("cannot read {}", sp.display()))?;
+        match &scenario_text {
+            None => scenario_text = Some(text),
+            Some(t) if *t != text => bail!(
+                "{}: the shards are of different scenarios (scenario.json differs from {})",
+                sp.display(),
+                parts[0].join("scenario.json").display()
+            ),
+            Some(_) => {}
+        }
+        results.push(io::read_shard(dir)?);
+    }
+    let text = scenario_text.context("no shard directories given")?;
+    let source = parts[0].join("scenario.json").display().to_string();
+    let sc = io::load_scenario(&source, &text, None)?;
+    let res = Results::merge(results).context("cannot merge the shards")?;
+    if res.total_runs != sc.runs() {
+        bail!(
+            "the shards hold {} runs but the scenario has {}",
+            res.total_runs,
+            sc.runs()
+        );
+    }
+    let mut st = io::Staged::new(out)?;
+    stage_outputs(&mut st, &sc, &res, None)?;
+    st.commit()?;
+    eprintln!("merged {} shard(s) into {}", parts.len(), out.display());
+    let over = Overrides {
+        json,
+        ..Overrides::default()
+    };
+    Ok(report(&sc, &res, &over))
+}
+
+/// The simulation directory of a scenario file (`eusipco.toml` → `eusipco`).
+fn sim_dir(file: &str) -> &str {
+    file.strip_suffix(".toml").unwrap_or(file)
+}
+
+fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<ExitCode> {
     if names.is_empty() {
         bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
     }
@@ -358,6 +622,7 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
             entries.push(e);
         }
     }
+    entries.dedup_by_key(|e| e.name);
     let pool = pool(over.threads)?;
     let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
         .into_iter()
@@ -369,26 +634,50 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
             continue;
         }
         let sc = io::load_scenario(e.file, e.text, None)?;
-        files.push((e.file, apply_overrides(sc, over)?));
+        let sc = apply_overrides(sc, over).with_context(|| e.file.to_string())?;
+        check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
+        files.push((e.file, sc));
     }
     let start = Instant::now();
+    let mut code = ExitCode::SUCCESS;
     for (file, sc) in &files {
         let t = Instant::now();
-        let res = pool.install(|| simulate(sc));
+        let res = pool.install(|| simulate(sc, 0..sc.runs()))?;
         let sim_time = t.elapsed();
-        for e in entries.iter().filter(|e| e.file == *file) {
-            let dir = out.join(e.name);
-            write_outputs(&dir, sc, &res, Some(e.plots))?;
-            eprintln!("{:<16} {}", e.name, dir.display());
+        let dir = out.join(sim_dir(file));
+        let mine: Vec<&registry::Entry> = entries
+            .iter()
+            .copied()
+            .filter(|e| e.file == *file)
+            .collect();
+        let plots: Vec<&str> = mine.iter().flat_map(|e| e.plots.iter().copied()).collect();
+        let mut st = io::Staged::new(&dir)?;
+        stage_outputs(&mut st, sc, &res, Some(&plots))?;
+        st.commit()?;
+        for e in &mine {
+            eprintln!(
+                "{:<16} {}",
+                e.name,
+                e.plots
+                    .iter()
+                    .map(|p| dir.join(format!("{p}.png")).display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
         }
         eprintln!(
             "  ({file}: {} runs × {} steps simulated in {:.2?})",
-            sc.runs, sc.steps, sim_time
+            sc.runs(),
+            sc.steps(),
+            sim_time
         );
+        if report(sc, &res, over) != ExitCode::SUCCESS {
+            code = ExitCode::from(DIVERGED);
+        }
     }
     for e in &slams {
         let dir = out.join(e.name);
-        slam::run_text(e.file, e.text, &dir)?;
+        slam::run_text(e.file, e.text, &dir, over.json)?;
         eprintln!("{:<16} {}", e.name, dir.display());
     }
     eprintln!(
@@ -396,5 +685,5 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<()> {
         entries.len() + slams.len(),
         start.elapsed()
     );
-    Ok(())
+    Ok(code)
 }

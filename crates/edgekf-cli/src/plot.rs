@@ -22,7 +22,7 @@ pub fn register_fonts() {
 
 use std::path::Path;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::Results;
 use plotters::prelude::*;
@@ -57,33 +57,38 @@ fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("plotting failed: {e:?}")
 }
 
-/// Renders one figure request into `dir/<file>.png` (temporary file, then rename).
-pub fn render(dir: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Result<()> {
+/// Renders one figure request into `path` (a PNG; the caller stages it under a temporary name).
+/// Estimators without data for the figure (e.g. diverged before its first point) are left out.
+pub fn render(path: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Result<()> {
     register_fonts();
-    let tmp = dir.join(format!(".{}.tmp.png", spec.file));
     let labels: Vec<String> = spec
-        .estimators
-        .clone()
-        .unwrap_or_else(|| res.labels.clone());
-    match spec.kind.as_str() {
-        "metric" => metric_plot(&tmp, spec, res, &labels)?,
-        "inputs" => inputs_plot(&tmp, spec, sc, res, &labels)?,
-        _ => paths_plot(&tmp, spec, sc, res, &labels)?,
+        .estimators()
+        .map(<[String]>::to_vec)
+        .unwrap_or_else(|| res.labels().iter().map(|s| s.to_string()).collect());
+    match spec {
+        PlotSpec::Metric { metric, log_y, .. } => {
+            metric_plot(path, spec, metric, *log_y, res, &labels)
+        }
+        PlotSpec::Inputs { agent, .. } => inputs_plot(path, spec, *agent, sc, res, &labels),
+        PlotSpec::Paths { .. } => paths_plot(path, spec, sc, res, &labels),
     }
-    std::fs::rename(&tmp, dir.join(format!("{}.png", spec.file)))
-        .with_context(|| format!("cannot move {} into place", tmp.display()))
 }
 
-fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -> Result<()> {
-    let metric = spec.metric.as_deref().unwrap_or("est_error");
+fn metric_plot(
+    path: &Path,
+    spec: &PlotSpec,
+    metric: &str,
+    log_y: bool,
+    res: &Results,
+    labels: &[String],
+) -> Result<()> {
     let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
     let tmax = *t.last().unwrap_or(&1.0);
     let mut series = Vec::new();
     for l in labels {
-        let s = res
-            .series(l, metric)
-            .ok_or_else(|| anyhow!("no series `{l}`/{metric}"))?;
-        series.push((l.clone(), s));
+        if let Some(s) = res.series(l, metric) {
+            series.push((l.clone(), s));
+        }
     }
     // y range over the bands (positive part on a log axis).
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -92,7 +97,7 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
             let sd = if sd.is_finite() { *sd } else { 0.0 };
             let (a, b) = (m - sd, m + sd);
             hi = hi.max(b);
-            if spec.log_y {
+            if log_y {
                 if *m > 0.0 {
                     lo = lo.min(if a > 0.0 { a } else { *m });
                 }
@@ -107,12 +112,12 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
     }
     let root = BitMapBackend::new(path, (1100, 720)).into_drawing_area();
     root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title.is_empty() {
+    let title = if spec.title().is_empty() {
         metric.to_string()
     } else {
-        spec.title.clone()
+        spec.title().to_string()
     };
-    let n = res.runs;
+    let n = res.runs.len();
     let caption = format!(
         "{title}  (mean ± 1σ over {n} run{})",
         if n == 1 { "" } else { "s" }
@@ -125,7 +130,7 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
         .y_label_area_size(96);
     // A log axis is drawn as a linear axis of log10 values, labelled with the values: plotters'
     // own log scale labels only the top decade of a narrow range.
-    let (y0, y1, map): (f64, f64, Box<dyn Fn(f64) -> f64>) = if spec.log_y {
+    let (y0, y1, map): (f64, f64, Box<dyn Fn(f64) -> f64>) = if log_y {
         let (l, h) = ((lo * 0.8).log10(), (hi * 1.25).log10());
         (l, h, Box::new(move |v: f64| v.max(lo * 0.8).log10()))
     } else {
@@ -135,7 +140,7 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
     let mut chart = builder
         .build_cartesian_2d(0.0..tmax, y0..y1)
         .map_err(draw_err)?;
-    let log = spec.log_y;
+    let log = log_y;
     let fmt = move |v: &f64| {
         if log {
             format!("{:.1e}", 10f64.powf(*v))
@@ -157,6 +162,8 @@ fn metric_plot(path: &Path, spec: &PlotSpec, res: &Results, labels: &[String]) -
         .axis_desc_style(("sans-serif", 18))
         .draw()
         .map_err(draw_err)?;
+    let series: Vec<(String, &edgekf::sim::Series)> =
+        series.iter().map(|(l, s)| (l.clone(), s)).collect();
     draw_bands(&mut chart, &t, &series, &map)?;
     root.present().map_err(draw_err)?;
     Ok(())
@@ -224,38 +231,37 @@ fn draw_bands<'a, DB: DrawingBackend + 'a>(
 fn inputs_plot(
     path: &Path,
     spec: &PlotSpec,
+    agent: usize,
     sc: &Scenario,
     res: &Results,
     labels: &[String],
 ) -> Result<()> {
-    let (n, d) = (sc.framework.agents(), sc.framework.dim());
-    let agent = spec.agent.unwrap_or(0);
+    let (n, d) = (sc.framework().agents(), sc.framework().dim());
     let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
     let tmax = *t.last().unwrap_or(&1.0);
     let mut curves = Vec::new();
     for l in labels {
         let e = res
-            .labels
-            .iter()
-            .position(|x| x == l)
+            .estimator(l)
             .ok_or_else(|| anyhow!("no estimator `{l}`"))?;
+        let reports = e.inputs.len() / (n * d);
         for c in 0..d {
-            let v: Vec<f64> = (0..t.len())
-                .map(|k| res.inputs[e][k * n * d + agent * d + c])
+            let v: Vec<f64> = (0..reports)
+                .map(|k| e.inputs[k * n * d + agent * d + c])
                 .collect();
             curves.push((format!("{l}: u_{}", ["x", "y", "z"][c]), v));
         }
     }
     let root = BitMapBackend::new(path, (1100, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title.is_empty() {
+    let title = if spec.title().is_empty() {
         "control input".to_string()
     } else {
-        spec.title.clone()
+        spec.title().to_string()
     };
     let root = root
         .titled(
-            &format!("{title}  (agent {agent}, run {})", sc.paths_run),
+            &format!("{title}  (agent {agent}, run {})", sc.paths_run()),
             ("sans-serif", 24),
         )
         .map_err(draw_err)?;
@@ -319,26 +325,25 @@ fn paths_plot(
     res: &Results,
     labels: &[String],
 ) -> Result<()> {
-    let fw = &sc.framework;
+    let fw = sc.framework();
     let (n, d) = (fw.agents(), fw.dim());
-    let nr = res.steps.len();
     let panels = labels.len().max(1);
     let cols = panels.min(2);
     let rows = panels.div_ceil(cols);
     let root =
         BitMapBackend::new(path, (640 * cols as u32, 600 * rows as u32 + 80)).into_drawing_area();
     root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title.is_empty() {
+    let title = if spec.title().is_empty() {
         "agent paths".to_string()
     } else {
-        spec.title.clone()
+        spec.title().to_string()
     };
     let root = root.titled(&title, ("sans-serif", 22)).map_err(draw_err)?;
     let (root, foot) = root.split_vertically(600 * rows as u32 + 80 - 30 - 26);
     foot.draw(&Text::new(
         format!(
             "run {}, 0–{:.0} s; ○ start, ▲ end (red: leaders), grey: final links",
-            sc.paths_run,
+            sc.paths_run(),
             res.steps.last().copied().unwrap_or(0) as f64 * res.dt
         ),
         (20, 4),
@@ -348,11 +353,13 @@ fn paths_plot(
     let areas = root.split_evenly((rows, cols));
     for (area, label) in areas.iter().zip(labels) {
         let e = res
-            .labels
-            .iter()
-            .position(|l| l == label)
+            .estimator(label)
             .ok_or_else(|| anyhow!("no estimator `{label}`"))?;
-        let p = &res.paths[e];
+        let p = &e.paths;
+        let nr = p.len() / (n * d);
+        if nr == 0 {
+            continue;
+        }
         let at = |k: usize, i: usize, c: usize| p[k * n * d + i * d + c];
         let (mut x0, mut x1, mut y0, mut y1) = (
             f64::INFINITY,

@@ -16,27 +16,51 @@ use std::path::{Path, PathBuf};
 ///
 /// `source` names the input in error messages. Each output is written to a temporary file in `out` and renamed
 /// into place, so an error never leaves a half-written file under an output name.
-pub fn run_text(source: &str, text: &str, out: &Path) -> Result<()> {
+///
+/// The design checks go to stderr (a log); the final summary to stdout, as JSON with `json`.
+pub fn run_text(source: &str, text: &str, out: &Path, json: bool) -> Result<()> {
     let spec = parse(source, text)?;
     let sc = spec.validate().map_err(|e| anyhow!("{source}: {e}"))?;
-    print!("{}", design_report(source, &sc));
+    eprint!("{}", design_report(source, &sc));
     let started = std::time::Instant::now();
     let traj = simulate(&sc);
     let elapsed = started.elapsed();
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create output directory {}", out.display()))?;
-    let json = resolved_json(&sc)?;
-    write_atomic(out, "scenario.json", json.as_bytes())?;
+    let resolved = resolved_json(&sc)?;
+    write_atomic(out, "scenario.json", resolved.as_bytes())?;
     write_atomic(out, "robots.csv", robots_csv(&sc, &traj).as_bytes())?;
     write_atomic(out, "team.csv", team_csv(&sc, &traj).as_bytes())?;
     plot_atomic(out, "paths.png", |p| slam_plot::paths(p, &sc, &traj))?;
     plot_atomic(out, "errors.png", |p| slam_plot::errors(p, &sc, &traj))?;
-    print!("{}", final_report(&sc, &traj, elapsed));
-    println!(
+    if json {
+        println!("{}", summary_json(&sc, &traj));
+    } else {
+        print!("{}", final_report(&sc, &traj, elapsed));
+    }
+    eprintln!(
         "wrote {}/{{scenario.json, robots.csv, team.csv, paths.png, errors.png}}",
         out.display()
     );
     Ok(())
+}
+
+/// The final errors as JSON (for scripts).
+fn summary_json(sc: &Scenario, tr: &Trajectory) -> String {
+    let k = tr.times.len() - 1;
+    let t = tr.times[k];
+    let x = &tr.x[k];
+    let peak = (0..=k).map(|j| tr.total_error(j)).fold(0.0, f64::max);
+    let v = serde_json::json!({
+        "scenario": sc.name,
+        "time": t,
+        "est_err_total": tr.total_error(k),
+        "est_err_total_peak": peak,
+        "formation_err": sc.formation_error(x),
+        "centroid_err": sc.centroid_error(t, x),
+        "robots": (0..sc.n()).map(|i| tr.error(k, i).norm()).collect::<Vec<f64>>(),
+    });
+    serde_json::to_string_pretty(&v).unwrap_or_default()
 }
 
 fn parse(source: &str, text: &str) -> Result<ScenarioSpec> {
@@ -319,9 +343,9 @@ mod tests {
     #[test]
     fn json_round_trip_reproduces_the_csvs_exactly() {
         let (a, b) = (temp_dir("a"), temp_dir("b"));
-        run_text("short.toml", &short(), &a).unwrap();
+        run_text("short.toml", &short(), &a, false).unwrap();
         let json = std::fs::read_to_string(a.join("scenario.json")).unwrap();
-        run_text("scenario.json", &json, &b).unwrap();
+        run_text("scenario.json", &json, &b, false).unwrap();
         for f in ["scenario.json", "robots.csv", "team.csv"] {
             assert_eq!(
                 std::fs::read(a.join(f)).unwrap(),
@@ -345,7 +369,13 @@ mod tests {
     #[test]
     fn errors_name_the_file_the_key_and_the_condition() {
         let out = temp_dir("err");
-        let e = run_text("bad.toml", &short().replace("kind = \"slam\"\n", ""), &out).unwrap_err();
+        let e = run_text(
+            "bad.toml",
+            &short().replace("kind = \"slam\"\n", ""),
+            &out,
+            false,
+        )
+        .unwrap_err();
         assert!(
             e.to_string().starts_with("bad.toml: key `kind` is missing"),
             "{e}"
@@ -354,6 +384,7 @@ mod tests {
             "bad.toml",
             &short().replace("k1 = 1.0", "k1 = 1.0\nk9 = 1.0"),
             &out,
+            false,
         )
         .unwrap_err();
         assert!(
@@ -364,12 +395,12 @@ mod tests {
             "measurement = [[1.0, -1.0, 0.0]",
             "measurement = [[1.0, -2.0, 0.0]",
         );
-        let e = run_text("bad.toml", &bad, &out).unwrap_err();
+        let e = run_text("bad.toml", &bad, &out, false).unwrap_err();
         assert_eq!(
             e.to_string(),
             "bad.toml: key `graphs.measurement` is not a graph Laplacian: row 0 sums to -1, not 0"
         );
-        let e = run_text("s.json", "{\"name\": \"x\"}", &out).unwrap_err();
+        let e = run_text("s.json", "{\"name\": \"x\"}", &out, false).unwrap_err();
         assert!(e.to_string().starts_with("s.json: "), "{e}");
         // Nothing was written for the failed runs.
         assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());

@@ -192,21 +192,33 @@ fn weights_not_matching_the_graph_are_named() {
 fn zero_runs_and_bad_flags_are_named() {
     let err = fails("runs", &SQUARE.replace("runs = 3", "runs = 0"), &[]);
     assert!(err.contains("sim.runs"), "{err}");
-    let err = fails("flag", SQUARE, &["--runs", "0"]);
-    assert!(err.contains("--runs"), "{err}");
-    let dir = tmp("threads");
+    // Flags out of range are usage errors (exit code 2) that name the flag and the problem,
+    // negative numbers included.
+    let dir = tmp("flags");
     let sc = write_scenario(&dir, SQUARE);
-    let o = edgekf(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        dir.join("o").to_str().unwrap(),
-        "--threads",
-        "0",
-    ]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
-    assert!(!dir.join("o").exists());
+    for (flag, value) in [
+        ("--runs", "0"),
+        ("--steps", "-5"),
+        ("--threads", "0"),
+        ("--every", "-1"),
+        ("--seed", "-3"),
+        ("--shard", "4/3"),
+        ("--max-hours", "0"),
+    ] {
+        let o = edgekf(&[
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            dir.join("o").to_str().unwrap(),
+            flag,
+            value,
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(flag), "{flag} {value}: {err}");
+        assert!(!err.contains("panicked") && !err.contains("-- -"), "{err}");
+        assert!(!dir.join("o").exists());
+    }
 }
 
 #[test]
@@ -252,8 +264,10 @@ fn reproduce_lists_and_runs_figures() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("thesis-fig4.5/thesis-fig4.5.png").exists());
-    assert!(dir.join("eusipco-fig3/eusipco-fig3.png").exists());
-    assert!(dir.join("eusipco-fig3/metrics.csv").exists());
+    // One directory per simulation, its figures beside its data.
+    assert!(dir.join("eusipco/eusipco-fig3.png").exists());
+    assert!(dir.join("eusipco/metrics.csv").exists());
+    assert!(!dir.join("eusipco/eusipco-fig4a.png").exists());
 }
 
 #[test]
@@ -292,6 +306,6 @@ fn fit_ar_prints_a_table_a_scenario_can_take() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--from", "0"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--from"));
 }

@@ -2,26 +2,34 @@
 
 mod common;
 
-use common::{hexagon, names, table, tail_mean};
-use edgekf::scenario::Scenario;
+use common::{build, hexagon, names, run, spec, table, tail_mean};
+use edgekf::scenario::{EstimatorEntry, Scenario};
 
-fn with_gain(mut sc: Scenario, gain: f64) -> Scenario {
-    sc.follower_gain = gain;
-    sc.leader_gain = gain;
-    sc
+fn with_gain(
+    gain: f64,
+    sigma_v: f64,
+    steps: usize,
+    runs: usize,
+    every: usize,
+    est: Vec<EstimatorEntry>,
+) -> Scenario {
+    let mut s = spec(0.0, sigma_v, steps, runs, every, est);
+    s.control.follower_gain = gain;
+    s.control.leader_gain = gain;
+    build(&s)
 }
 
 /// Thesis Fig. 3.3: without noise the loop converges exponentially to a rigid formation.
 #[test]
 fn noiseless_loop_converges_to_a_rigid_formation() {
     let sc = hexagon(0.0, 0.0, 10_000, 4, 100, names(&["none"]));
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let p = &res.series("none", "procrustes").unwrap().mean;
     let at = |t: f64| {
         p[res
             .steps
             .iter()
-            .position(|&k| k as f64 * sc.dt >= t)
+            .position(|&k| k as f64 * sc.dt() >= t)
             .unwrap()]
     };
     // Exponential decay: the log-slope between 5 s and 10 s is the slowest closed-loop rate; the
@@ -46,11 +54,8 @@ fn noiseless_loop_converges_to_a_rigid_formation() {
 /// (0.6 % at 20 runs, 7 % with gain 1 where the larger noise of `none` bends the leaders' law).
 #[test]
 fn mle_floor_is_sqrt_t_below_no_estimator() {
-    let sc = with_gain(
-        hexagon(0.0, 0.1, 10_000, 8, 50, names(&["none", "mle"])),
-        10.0,
-    );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let sc = with_gain(10.0, 0.1, 10_000, 8, 50, names(&["none", "mle"]));
+    let res = run(&sc);
     let half = res.steps.len() / 2;
     let none = tail_mean(&res.series("none", "procrustes").unwrap().mean, half);
     let mle = tail_mean(&res.series("mle", "procrustes").unwrap().mean, half);
@@ -71,11 +76,8 @@ fn mle_floor_is_sqrt_t_below_no_estimator() {
 #[test]
 fn rkf_floor_far_below_mle_with_observation_noise_only() {
     for (gain, bound) in [(1.0, 2.0), (10.0, 6.0)] {
-        let sc = with_gain(
-            hexagon(0.0, 0.1, 30_000, 6, 100, names(&["mle", "rkf"])),
-            gain,
-        );
-        let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+        let sc = with_gain(gain, 0.1, 30_000, 6, 100, names(&["mle", "rkf"]));
+        let res = run(&sc);
         let from = res.steps.iter().position(|&k| k >= 25_000).unwrap();
         let mle = tail_mean(&res.series("mle", "procrustes").unwrap().mean, from);
         let rkf = tail_mean(&res.series("rkf", "procrustes").unwrap().mean, from);
@@ -103,7 +105,7 @@ fn mmse_interpolates_between_mle_and_a_slow_filter() {
             table("mmse", "tight", None, Some(1e-5)),
         ],
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let mle = &res.series("mle", "est_error").unwrap().mean;
     let wide = &res.series("wide", "est_error").unwrap().mean;
     let tight = &res.series("tight", "est_error").unwrap().mean;

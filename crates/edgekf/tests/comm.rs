@@ -2,61 +2,24 @@
 
 mod common;
 
-use common::{names, tail_mean};
-use edgekf::estimate::ar::ArModel;
-use edgekf::scenario::{EstimatorEntry, EstimatorTable, Scenario};
+use common::{ar, names, run, tail_mean};
+use edgekf::scenario::{CommSpec, EstimatorEntry, Scenario};
 
-/// The AR(1) model shipped with the chapter 6 scenarios (fitted with `edgekf fit-ar`).
-fn ar() -> ArModel {
-    ArModel {
-        coeffs: vec![vec![0.975, 0.979]],
-        noise_var: vec![0.0115, 0.0119],
+fn entry(kind: &str, label: &str, p_fail: Option<f64>) -> EstimatorEntry {
+    let e = EstimatorEntry::kind(kind).with("label", label);
+    match p_fail {
+        Some(p) => e.with("p_fail", p),
+        None => e,
     }
 }
 
-fn entry(kind: &str, label: &str, p_fail: Option<f64>) -> EstimatorEntry {
-    EstimatorEntry::Table(EstimatorTable {
-        kind: kind.into(),
-        label: Some(label.into()),
-        samples: None,
-        prior_var: None,
-        p_fail,
-    })
-}
-
 fn scenario(steps: usize, runs: usize, every: usize, estimators: Vec<EstimatorEntry>) -> Scenario {
-    let mut sc = common::hexagon(0.001, 0.1, steps, runs, every, names(&["rkf"]));
-    // Rebuild through the spec so the estimators are checked against the AR model.
-    let mut r = sc.to_resolved();
-    r.comm = Some(edgekf::scenario::CommSpec {
+    let mut s = common::spec(0.001, 0.1, steps, runs, every, estimators);
+    s.comm = CommSpec {
         p_fail: 0.0,
         ar: Some(ar()),
-    });
-    let labels: Vec<String> = estimators
-        .iter()
-        .map(|e| match e {
-            EstimatorEntry::Table(t) => t.label.clone().unwrap(),
-            EstimatorEntry::Name(n) => n.clone(),
-        })
-        .collect();
-    r.estimators = labels;
-    r.estimator_specs = Some(
-        estimators
-            .into_iter()
-            .map(|e| match e {
-                EstimatorEntry::Table(t) => t,
-                EstimatorEntry::Name(n) => EstimatorTable {
-                    kind: n.clone(),
-                    label: Some(n),
-                    samples: None,
-                    prior_var: None,
-                    p_fail: None,
-                },
-            })
-            .collect(),
-    );
-    sc = Scenario::from_resolved(&r).unwrap();
-    sc
+    };
+    common::build(&s)
 }
 
 #[test]
@@ -72,18 +35,15 @@ fn rkf_ar_without_failures_is_the_rkf_bit_for_bit() {
             entry("jrkf-ar", "jar0", Some(0.0)),
         ],
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
-    for (a, b) in [(0, 1), (2, 3)] {
-        for m in 0..2 {
-            let (x, y) = (&res.per_run[a][m], &res.per_run[b][m]);
+    let res = run(&sc);
+    for (a, b) in [("rkf", "ar0"), ("jrkf", "jar0")] {
+        for m in ["est_error", "est_error_sq", "cov_trace", "procrustes"] {
+            let (x, y) = (res.values(a, m).unwrap(), res.values(b, m).unwrap());
             assert!(
                 x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits()),
-                "{} vs {}",
-                res.labels[a],
-                res.labels[b]
+                "{a} vs {b}: {m}"
             );
         }
-        assert_eq!(res.series[a][2], res.series[b][2], "cov_trace");
     }
 }
 
@@ -109,11 +69,11 @@ fn ar_prediction_keeps_the_floor_and_zero_input_is_biased() {
             entry("rkf-zero", "zero", None),
         ],
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let at = |t: f64| {
         res.steps
             .iter()
-            .position(|&k| k as f64 * sc.dt >= t)
+            .position(|&k| k as f64 * sc.dt() >= t)
             .unwrap()
     };
     let window = |l: &str, m: &str, a: f64, b: f64| {
@@ -150,7 +110,7 @@ fn jrkf_ar_keeps_the_joint_floor() {
             entry("jrkf-ar", "jar50", Some(0.5)),
         ],
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let from = res.steps.iter().position(|&k| k >= 2000).unwrap();
     let j = tail_mean(&res.series("jrkf", "est_error").unwrap().mean, from);
     let a = tail_mean(&res.series("jar50", "est_error").unwrap().mean, from);
@@ -174,11 +134,11 @@ fn commless_converges_faster_than_zero_input() {
             entry("rkf-commless", "commless", None),
         ],
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let at = |t: f64| {
         res.steps
             .iter()
-            .position(|&k| k as f64 * sc.dt >= t)
+            .position(|&k| k as f64 * sc.dt() >= t)
             .unwrap()
     };
     let mean = |l: &str, a: f64, b: f64| {
@@ -201,8 +161,9 @@ fn missing_ar_model_is_named() {
     r.estimators = vec!["rkf-ar".into()];
     r.estimator_specs = None;
     let e = Scenario::from_resolved(&r).unwrap_err();
-    assert_eq!(e.key, "comm.ar");
-    r.comm = Some(edgekf::scenario::CommSpec {
+    assert_eq!(e.key, "estimators[0]");
+    assert!(e.message.contains("[comm.ar]"), "{e}");
+    r.comm = Some(CommSpec {
         p_fail: 1.5,
         ar: Some(ar()),
     });

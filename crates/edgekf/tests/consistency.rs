@@ -2,10 +2,12 @@
 //! error equals the trace of its posterior covariance (issue 2, point 10), and covariances stay
 //! symmetric positive semidefinite.
 
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
-use common::{hexagon, names};
-use edgekf::estimate::{Estimator, EstimatorKind, StepInput};
+use common::{hexagon, names, run};
+use edgekf::estimate::{Estimator, Faults, Step};
 
 /// z-test of E[ε²] = tr Σ per filter.
 ///
@@ -20,11 +22,11 @@ use edgekf::estimate::{Estimator, EstimatorKind, StepInput};
 fn mean_squared_error_equals_covariance_trace() {
     let runs = 200;
     let sc = hexagon(0.001, 0.1, 2000, runs, 50, names(&["rkf", "jrkf", "crkf"]));
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let from = res.steps.iter().position(|&k| k >= 1000).unwrap();
     let nr = res.steps.len();
-    for (e, label) in res.labels.iter().enumerate() {
-        let per_run = &res.per_run[e][0];
+    for label in res.labels() {
+        let per_run = res.values(label, "est_error_sq").unwrap();
         // Early window: the very first update (k = 1), where Σ is far from steady state.
         for window in [0..1, from..nr] {
             let avgs: Vec<f64> = (0..runs)
@@ -52,20 +54,25 @@ fn mean_squared_error_equals_covariance_trace() {
 #[test]
 fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
     let sc = hexagon(0.001, 0.1, 10, 1, 1, names(&["jrkf"]));
-    let m = edgekf::estimate::EdgeModel::new(&sc, sc.samples);
-    let mut jrkf = edgekf::estimate::jrkf::Jrkf::new(&m, 1);
-    let mut crkf = edgekf::estimate::crkf::Crkf::new(&m, 1);
+    let m = sc.model();
+    let t = sc.samples();
+    let mut jrkf = edgekf::estimate::jrkf::Jrkf::new(m, t, 1, None, true);
+    let mut crkf = edgekf::estimate::crkf::Crkf::new(m, t, 1, true);
     let (ne, d, n) = (m.num_edges(), m.dim, m.agents);
     let zeros_e = vec![0.0; ne * d];
     let zeros_n = vec![0.0; n * d];
-    let input = StepInput {
+    let faults = Faults::none(n, &m.edges, 1);
+    let input = Step {
+        k: 1,
+        dt: sc.dt(),
+        y: &zeros_e,
         u_prev: &zeros_n,
         du: &zeros_e,
-        y: &zeros_e,
-        x_true: &zeros_e,
-        link: &[],
-        dt: sc.dt,
+        faults: &faults,
+        truth: &zeros_e,
+        target: None,
     };
+    let w_edges = m.mean_cov(t);
     // Edge-space CRKF (9d)–(9g) in the full M·D = 120 dimensions, Joseph form.
     let md = ne * d;
     let mut sigma = nalgebra::DMatrix::zeros(md, md);
@@ -79,7 +86,7 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
             qx.view_mut((e * d, f * d), (d, d))
                 .copy_from(&m.edge_q(e, f));
         }
-        w.view_mut((e * d, e * d), (d, d)).copy_from(&m.w[e]);
+        w.view_mut((e * d, e * d), (d, d)).copy_from(&w_edges[e]);
     }
     for step in 0..10 {
         jrkf.step(&input);
@@ -89,15 +96,17 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
         let k = &prior * s.try_inverse().unwrap();
         let a = nalgebra::DMatrix::identity(md, md) - &k;
         sigma = &a * &prior * a.transpose() + &k * &w * k.transpose();
-        let rel = (sigma.trace() - crkf.cov_trace()).abs() / sigma.trace();
+        let mut trace = [0.0];
+        crkf.cov_trace(&input, &mut trace);
+        let rel = (sigma.trace() - trace[0]).abs() / sigma.trace();
         assert!(
             rel < 1e-9,
             "step {step}: edge-space trace {} vs node-space {}",
             sigma.trace(),
-            crkf.cov_trace()
+            trace[0]
         );
         for i in 0..n {
-            let c = jrkf.covariance(i);
+            let c = jrkf.covariance(i, 0);
             assert!(
                 (c - c.transpose()).amax() == 0.0,
                 "JRKF covariance symmetric"
@@ -105,12 +114,8 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
             let ev = c.clone().symmetric_eigen().eigenvalues;
             assert!(ev.min() > -1e-15 * ev.max(), "JRKF covariance PSD");
         }
-        let c = crkf.node_covariance();
+        let c = crkf.node_covariance(0);
         assert!((c - c.transpose()).amax() == 0.0);
         assert!(c.clone().symmetric_eigen().eigenvalues.min() > 0.0);
     }
-    assert_eq!(
-        EstimatorKind::parse("crkf", None, None, 0.0).unwrap(),
-        EstimatorKind::Crkf
-    );
 }

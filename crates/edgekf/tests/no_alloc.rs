@@ -42,7 +42,7 @@ fn allocations_do_not_grow_with_steps() {
         let sc = hexagon(0.001, 0.1, steps, 3, steps / 2, estimators.clone());
         pool.install(|| {
             let before = ALLOCS.load(Ordering::SeqCst);
-            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
             let after = ALLOCS.load(Ordering::SeqCst);
             assert_eq!(res.steps.len(), 3);
             after - before

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{hexagon, names};
+use common::{hexagon, names, run};
 
 #[test]
 fn steady_state_ordering_with_correlated_disturbances() {
@@ -17,7 +17,7 @@ fn steady_state_ordering_with_correlated_disturbances() {
         100,
         names(&["none", "mle", "rkf", "jrkf", "crkf"]),
     );
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let last = |l: &str| *res.series(l, "cov_trace").unwrap().mean.last().unwrap();
     let (none, mle, rkf, jrkf, crkf) = (
         last("none"),
@@ -38,7 +38,7 @@ fn steady_state_ordering_with_correlated_disturbances() {
 #[test]
 fn without_process_noise_joint_and_single_edge_filters_coincide() {
     let sc = hexagon(0.0, 0.1, 3000, 1, 100, names(&["rkf", "jrkf"]));
-    let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet);
+    let res = run(&sc);
     let rkf = &res.series("rkf", "cov_trace").unwrap().mean;
     let jrkf = &res.series("jrkf", "cov_trace").unwrap().mean;
     let k = rkf.len() - 1;

@@ -2,7 +2,7 @@
 //! symmetric with zero row sums, covariance steps keep covariances symmetric PSD, and the static
 //! (const-D) and dynamic paths agree.
 
-use edgekf::estimate::rkf::joseph_step;
+use edgekf::estimate::batch::joseph_step;
 use edgekf::graph::Graph;
 use nalgebra::{DMatrix, SMatrix};
 use proptest::prelude::*;
@@ -81,7 +81,7 @@ proptest! {
         w3 in proptest::collection::vec(-0.1f64..0.1, 9),
     ) {
         let (p, w) = (spd::<2>(&p2, 1e-6), spd::<2>(&w2, 1e-6));
-        let (post, _) = joseph_step(&p, &w);
+        let (post, _) = joseph_step(&p, &w).expect("positive definite");
         prop_assert_eq!(post[(0, 1)].to_bits(), post[(1, 0)].to_bits());
         prop_assert!(post.symmetric_eigen().eigenvalues.min() >= -1e-15 * post.amax());
         let dynamic = generic_joseph(&DMatrix::from_iterator(2, 2, p.iter().copied()), &DMatrix::from_iterator(2, 2, w.iter().copied()));
@@ -91,7 +91,7 @@ proptest! {
         prop_assert!(post.trace() <= p.trace() * (1.0 + 1e-12));
 
         let (p, w) = (spd::<3>(&p3, 1e-6), spd::<3>(&w3, 1e-6));
-        let (post, _) = joseph_step(&p, &w);
+        let (post, _) = joseph_step(&p, &w).expect("positive definite");
         prop_assert!((post - post.transpose()).amax() == 0.0);
         prop_assert!(post.symmetric_eigen().eigenvalues.min() >= -1e-15 * post.amax());
         let dynamic = generic_joseph(&DMatrix::from_iterator(3, 3, p.iter().copied()), &DMatrix::from_iterator(3, 3, w.iter().copied()));

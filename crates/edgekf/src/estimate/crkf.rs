@@ -13,33 +13,93 @@
 //!   `ζ̂_{k|k} = ζ̂_{k|k−1} + Σ_{k|k} (Gᵀ W⁻¹ ȳ − Gᵀ W⁻¹ G ζ̂_{k|k−1})` ((9e)–(9g); `W = R/T`);
 //! - `x̂_{k|k} = G ζ̂_{k|k}` and `tr Σ^x_{k|k} = tr(Σ_{k|k} GᵀG)`.
 //!
-//! The covariance is frozen once it has converged to rounding level
-//! ([`crate::linalg::converged`]). One covariance step costs an (N−1)D-sized inversion instead of an M·D-sized one (18 vs 120 for
-//! the hexagon); a test checks the traces against the edge-space recursion.
+//! One covariance step costs an (N−1)D-sized inversion instead of an M·D-sized one (18 vs 120 for
+//! the hexagon); a test checks the traces against the edge-space recursion. The covariance is
+//! frozen once it has converged to rounding level ([`crate::linalg::converged`]).
+//!
+//! **Faults**: the information of the measurements that did not arrive is left out
+//! (`J = Σ_{observed e} G_eᵀ W_e⁻¹ G_e`); the gain then depends on each run's faults, so each run
+//! carries its own covariance. The centralised filter is a benchmark: it assumes one node
+//! receives every measurement and input.
 //!
 //! # References
 //! van der Marel & Rajan, EUSIPCO 2022, eq. (9); van der Marel, MSc thesis 2021, §5.2, Alg. 6.
 
-use nalgebra::DMatrix;
+use std::sync::Arc;
 
-use super::{EdgeModel, Estimator, StepInput};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use super::{
+    parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+};
 use crate::linalg::{
     batch_gemv, batch_gemv_acc, converged, invert_spd, to_row_major, trace_of_product_sym,
 };
 
-/// The CRKF.
+/// `kind = "crkf"`.
+#[derive(Debug, Clone, Copy)]
+pub struct Kind;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+impl EstimatorKind for Kind {
+    fn name(&self) -> &'static str {
+        "crkf"
+    }
+    fn about(&self) -> &'static str {
+        "centralised relative Kalman filter (EUSIPCO eq. 9), exact node-relative form"
+    }
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        if m.r.iter().any(|r| r.clone().cholesky().is_none()) {
+            return Err(
+                "crkf runs in information form and needs positive definite measurement covariances (noise.sigma_v > 0)"
+                    .into(),
+            );
+        }
+        Ok(Arc::new(Config))
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Config;
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        Options::new()
+    }
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        Box::new(Crkf::new(m, samples, runs, self.shared_gain(m)))
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let nz = ((m.agents - 1) * m.dim) as f64;
+        let md = (m.num_edges() * m.dim) as f64;
+        // Two Cholesky inversions (≈ nz³ each with the solves) per covariance step.
+        let inv = 2.0 * nz * nz * nz;
+        if self.shared_gain(m) {
+            Cost {
+                bytes_per_run: (nz + md) * 8.0 * 2.0,
+                bytes_shared: 8.0 * nz * nz * 8.0,
+                flops_per_run_step: 2.0 * nz * nz + 4.0 * md,
+                flops_shared_step: inv,
+            }
+        } else {
+            Cost {
+                bytes_per_run: (nz + md) * 8.0 * 2.0 + 6.0 * nz * nz * 8.0,
+                bytes_shared: 0.0,
+                flops_per_run_step: inv + 4.0 * md,
+                flops_shared_step: 0.0,
+            }
+        }
+    }
+}
+
+/// One covariance recursion of ζ: shared by all runs, or of one run.
 #[derive(Debug, Clone)]
-pub struct Crkf {
-    runs: usize,
-    dim: usize,
-    edges: Vec<(usize, usize)>,
-    /// `W_e⁻¹` row-major per edge.
-    w_inv: Vec<f64>,
-    q: DMatrix<f64>,
-    j: DMatrix<f64>,
-    j_rm: Vec<f64>,
-    gtg: DMatrix<f64>,
-    sigma0: DMatrix<f64>,
+struct NodeCov {
     sigma: DMatrix<f64>,
     prior: DMatrix<f64>,
     info: DMatrix<f64>,
@@ -47,29 +107,89 @@ pub struct Crkf {
     next: DMatrix<f64>,
     sigma_rm: Vec<f64>,
     frozen: bool,
+    trace: f64,
+}
+
+impl NodeCov {
+    fn new(sigma0: &DMatrix<f64>, gtg: &DMatrix<f64>) -> Self {
+        let nz = sigma0.nrows();
+        let mut c = Self {
+            sigma: sigma0.clone(),
+            prior: DMatrix::zeros(nz, nz),
+            info: DMatrix::zeros(nz, nz),
+            work: DMatrix::zeros(nz, nz),
+            next: DMatrix::zeros(nz, nz),
+            sigma_rm: vec![0.0; nz * nz],
+            frozen: false,
+            trace: 0.0,
+        };
+        to_row_major(&c.sigma, &mut c.sigma_rm);
+        c.trace = trace_of_product_sym(&c.sigma, gtg);
+        c
+    }
+
+    /// `Σ ← ((Σ + Q)⁻¹ + J)⁻¹`; `false` when a matrix is not positive definite.
+    fn step(
+        &mut self,
+        q: &DMatrix<f64>,
+        j: &DMatrix<f64>,
+        gtg: &DMatrix<f64>,
+        partial: bool,
+    ) -> bool {
+        self.prior.copy_from(&self.sigma);
+        self.prior += q;
+        if !invert_spd(&self.prior, &mut self.work, &mut self.info) {
+            return false;
+        }
+        self.info += j;
+        if !invert_spd(&self.info, &mut self.work, &mut self.next) {
+            return false;
+        }
+        self.frozen = !partial && converged(&self.next, &self.sigma);
+        std::mem::swap(&mut self.next, &mut self.sigma);
+        to_row_major(&self.sigma, &mut self.sigma_rm);
+        self.trace = trace_of_product_sym(&self.sigma, gtg);
+        self.trace.is_finite()
+    }
+}
+
+/// The CRKF.
+#[derive(Debug, Clone)]
+pub struct Crkf {
+    runs: usize,
+    dim: usize,
+    edges: Vec<(usize, usize)>,
+    /// `W_e⁻¹` per edge, row-major (for the batched products) and as matrices.
+    w_inv: Vec<f64>,
+    w_inv_m: Vec<DMatrix<f64>>,
+    q: DMatrix<f64>,
+    j: DMatrix<f64>,
+    j_rm: Vec<f64>,
+    gtg: DMatrix<f64>,
+    /// One shared recursion, or one per run.
+    covs: Vec<NodeCov>,
+    shared: bool,
+    /// Per-run information matrix scratch.
+    j_run: DMatrix<f64>,
     zeta: Vec<f64>,
     b: Vec<f64>,
     s: Vec<f64>,
     x: Vec<f64>,
-    trace: f64,
+    breakdown: Option<Breakdown>,
 }
 
 impl Crkf {
-    /// For `runs` runs.
+    /// For `runs` runs with `samples` measurements per step; `shared` selects one covariance for
+    /// all runs (valid without measurement faults).
     ///
     /// # Panics
-    /// If a measurement covariance is singular (the scenario check rejects that for `crkf`).
-    pub fn new(m: &EdgeModel, runs: usize) -> Self {
+    /// If a measurement covariance is singular (the kind refuses that).
+    pub fn new(m: &Model, samples: usize, runs: usize, shared: bool) -> Self {
         let d = m.dim;
         let nz = (m.agents - 1) * d;
-        // g(e, n): coefficient of ζ_n (n ≥ 1) in x_e.
-        let g = |e: usize, n: usize| {
-            let (i, j) = m.edges[e];
-            f64::from(u8::from(i == n)) - f64::from(u8::from(j == n))
-        };
         let mut w_inv = Vec::with_capacity(m.num_edges() * d * d);
         let mut w_inv_m = Vec::with_capacity(m.num_edges());
-        for w in &m.w {
+        for w in &m.mean_cov(samples) {
             let inv = w
                 .clone()
                 .try_inverse()
@@ -88,13 +208,16 @@ impl Crkf {
                 q.view_mut((ra, rb), (d, d)).copy_from(&qb);
                 let p = &m.p * if a == b { 2.0 } else { 1.0 };
                 sigma0.view_mut((ra, rb), (d, d)).copy_from(&p);
-                for (e, wi) in w_inv_m.iter().enumerate() {
-                    let c = g(e, a) * g(e, b);
-                    if c != 0.0 {
-                        let mut v = j.view_mut((ra, rb), (d, d));
-                        v += wi * c;
-                        for k in 0..d {
-                            gtg[(ra + k, rb + k)] += c;
+            }
+        }
+        for (e, wi) in w_inv_m.iter().enumerate() {
+            add_edge_information(&mut j, m.edges[e], d, wi);
+            let (i, k) = m.edges[e];
+            for (a, ca) in [(i, 1.0), (k, -1.0)] {
+                for (b, cb) in [(i, 1.0), (k, -1.0)] {
+                    if a > 0 && b > 0 {
+                        for c in 0..d {
+                            gtg[((a - 1) * d + c, (b - 1) * d + c)] += ca * cb;
                         }
                     }
                 }
@@ -102,97 +225,66 @@ impl Crkf {
         }
         let mut j_rm = vec![0.0; nz * nz];
         to_row_major(&j, &mut j_rm);
-        let mut f = Self {
+        let proto = NodeCov::new(&sigma0, &gtg);
+        let covs = if shared {
+            vec![proto]
+        } else {
+            vec![proto; runs]
+        };
+        Self {
             runs,
             dim: d,
             edges: m.edges.clone(),
             w_inv,
+            w_inv_m,
             q,
+            j_run: DMatrix::zeros(nz, nz),
             j,
             j_rm,
             gtg,
-            sigma: sigma0.clone(),
-            sigma0,
-            prior: DMatrix::zeros(nz, nz),
-            info: DMatrix::zeros(nz, nz),
-            work: DMatrix::zeros(nz, nz),
-            next: DMatrix::zeros(nz, nz),
-            sigma_rm: vec![0.0; nz * nz],
-            frozen: false,
+            covs,
+            shared,
             zeta: vec![0.0; nz * runs],
             b: vec![0.0; nz * runs],
             s: vec![0.0; d * runs],
             x: vec![0.0; m.num_edges() * d * runs],
-            trace: 0.0,
-        };
-        f.reset();
-        f
-    }
-
-    /// Posterior covariance of the node-relative state ζ.
-    pub fn node_covariance(&self) -> &DMatrix<f64> {
-        &self.sigma
-    }
-
-    fn covariance_step(&mut self) {
-        self.prior.copy_from(&self.sigma);
-        self.prior += &self.q;
-        assert!(
-            invert_spd(&self.prior, &mut self.work, &mut self.info),
-            "CRKF prior covariance is positive definite"
-        );
-        self.info += &self.j;
-        assert!(
-            invert_spd(&self.info, &mut self.work, &mut self.next),
-            "CRKF information matrix is positive definite"
-        );
-        self.frozen = converged(&self.next, &self.sigma);
-        std::mem::swap(&mut self.next, &mut self.sigma);
-        to_row_major(&self.sigma, &mut self.sigma_rm);
-        self.trace = trace_of_product_sym(&self.sigma, &self.gtg);
-    }
-}
-
-impl Estimator for Crkf {
-    fn reset(&mut self) {
-        self.sigma.copy_from(&self.sigma0);
-        self.trace = trace_of_product_sym(&self.sigma, &self.gtg);
-        self.frozen = false;
-        self.zeta.fill(0.0);
-        self.x.fill(0.0);
-    }
-
-    fn step(&mut self, input: &StepInput<'_>) {
-        if !self.frozen {
-            self.covariance_step();
+            breakdown: None,
         }
+    }
+
+    /// Posterior covariance of the node-relative state ζ (of run `r` for the per-run path).
+    pub fn node_covariance(&self, r: usize) -> &DMatrix<f64> {
+        &self.covs[if self.shared { 0 } else { r }].sigma
+    }
+
+    fn fail(&mut self) {
+        self.breakdown.get_or_insert(Breakdown {
+            what: "the CRKF covariance lost positive definiteness".into(),
+        });
+    }
+
+    /// `b = Gᵀ W⁻¹ ȳ` over the observed edges (runs innermost).
+    fn information_vector(&mut self, s: &Step<'_>) {
         let (r, d) = (self.runs, self.dim);
-        let nz = self.sigma.nrows();
-        // Prediction: ζ_n += Δt (u_n − u_0).
-        for n in 1..=nz / d {
-            for k in 0..d {
-                let zrow = &mut self.zeta[((n - 1) * d + k) * r..((n - 1) * d + k + 1) * r];
-                let un = &input.u_prev[(n * d + k) * r..(n * d + k + 1) * r];
-                let u0 = &input.u_prev[k * r..(k + 1) * r];
-                for ((z, a), b) in zrow.iter_mut().zip(un).zip(u0) {
-                    *z += input.dt * (a - b);
-                }
-            }
-        }
-        // b = Gᵀ W⁻¹ ȳ − J ζ̂⁻.
-        batch_gemv(&self.j_rm, nz, nz, &self.zeta, &mut self.b, r);
-        for v in &mut self.b {
-            *v = -*v;
-        }
+        let faults = s.faults.measurement_faults();
         for (e, &(i, j)) in self.edges.iter().enumerate() {
             self.s.fill(0.0);
             batch_gemv_acc(
                 &self.w_inv[e * d * d..(e + 1) * d * d],
                 d,
-                &input.y[e * d * r..(e + 1) * d * r],
+                &s.y[e * d * r..(e + 1) * d * r],
                 &mut self.s,
                 r,
             );
+            if faults {
+                for (run, &seen) in s.faults.observed_row(e).iter().enumerate() {
+                    if !seen {
+                        for c in 0..d {
+                            self.s[c * r + run] = 0.0;
+                        }
+                    }
+                }
+            }
             for (node, sign) in [(i, 1.0), (j, -1.0)] {
                 if node > 0 {
                     let rows = &mut self.b[(node - 1) * d * r..node * d * r];
@@ -202,7 +294,88 @@ impl Estimator for Crkf {
                 }
             }
         }
-        batch_gemv_acc(&self.sigma_rm, nz, &self.b, &mut self.zeta, r);
+    }
+}
+
+/// `J += G_eᵀ W_e⁻¹ G_e` for edge `(i, j)` in node-relative coordinates.
+fn add_edge_information(j: &mut DMatrix<f64>, (a, b): (usize, usize), d: usize, wi: &DMatrix<f64>) {
+    for (p, cp) in [(a, 1.0), (b, -1.0)] {
+        for (q, cq) in [(a, 1.0), (b, -1.0)] {
+            if p > 0 && q > 0 {
+                let mut v = j.view_mut(((p - 1) * d, (q - 1) * d), (d, d));
+                v += wi * (cp * cq);
+            }
+        }
+    }
+}
+
+impl Estimator for Crkf {
+    fn step(&mut self, s: &Step<'_>) {
+        if self.breakdown.is_some() {
+            return;
+        }
+        let (r, d) = (self.runs, self.dim);
+        let nz = self.q.nrows();
+        // Prediction: ζ_n += Δt (u_n − u_0).
+        for n in 1..=nz / d {
+            for k in 0..d {
+                let zrow = &mut self.zeta[((n - 1) * d + k) * r..((n - 1) * d + k + 1) * r];
+                let un = &s.u_prev[(n * d + k) * r..(n * d + k + 1) * r];
+                let u0 = &s.u_prev[k * r..(k + 1) * r];
+                for ((z, a), b) in zrow.iter_mut().zip(un).zip(u0) {
+                    *z += s.dt * (a - b);
+                }
+            }
+        }
+        if self.shared {
+            if !self.covs[0].frozen && !self.covs[0].step(&self.q, &self.j, &self.gtg, false) {
+                self.fail();
+                return;
+            }
+            // b = Gᵀ W⁻¹ ȳ − J ζ̂⁻.
+            batch_gemv(&self.j_rm, nz, nz, &self.zeta, &mut self.b, r);
+            for v in &mut self.b {
+                *v = -*v;
+            }
+            self.information_vector(s);
+            batch_gemv_acc(&self.covs[0].sigma_rm, nz, &self.b, &mut self.zeta, r);
+        } else {
+            self.b.fill(0.0);
+            self.information_vector(s);
+            for run in 0..r {
+                self.j_run.fill(0.0);
+                let mut partial = false;
+                for (e, wi) in self.w_inv_m.iter().enumerate() {
+                    if s.faults.observed(e, run) {
+                        add_edge_information(&mut self.j_run, self.edges[e], d, wi);
+                    } else {
+                        partial = true;
+                    }
+                }
+                let c = &mut self.covs[run];
+                if (!c.frozen || partial) && !c.step(&self.q, &self.j_run, &self.gtg, partial) {
+                    self.breakdown.get_or_insert(Breakdown {
+                        what: "the CRKF covariance lost positive definiteness".into(),
+                    });
+                    return;
+                }
+                // ζ̂ += Σ (b − J ζ̂⁻) for this run.
+                for a in 0..nz {
+                    let mut v = self.b[a * r + run];
+                    for c2 in 0..nz {
+                        v -= self.j_run[(a, c2)] * self.zeta[c2 * r + run];
+                    }
+                    self.b[a * r + run] = v;
+                }
+                for a in 0..nz {
+                    let mut v = 0.0;
+                    for c2 in 0..nz {
+                        v += c.sigma_rm[a * nz + c2] * self.b[c2 * r + run];
+                    }
+                    self.zeta[a * r + run] += v;
+                }
+            }
+        }
         // x̂_e = ζ̂_i − ζ̂_j with ζ̂_0 = 0.
         for (e, &(i, j)) in self.edges.iter().enumerate() {
             let xe = &mut self.x[e * d * r..(e + 1) * d * r];
@@ -224,7 +397,17 @@ impl Estimator for Crkf {
         &self.x
     }
 
-    fn cov_trace(&self) -> f64 {
-        self.trace
+    fn cov_trace(&self, _s: &Step<'_>, out: &mut [f64]) {
+        if self.shared {
+            out.fill(self.covs[0].trace);
+        } else {
+            for (o, c) in out.iter_mut().zip(&self.covs) {
+                *o = c.trace;
+            }
+        }
+    }
+
+    fn breakdown(&self) -> Option<&Breakdown> {
+        self.breakdown.as_ref()
     }
 }

@@ -1,4 +1,5 @@
-//! Joint relative Kalman filter (JRKF; the thesis's J-Edge-KF).
+//! Joint relative Kalman filter (JRKF; the thesis's J-Edge-KF), and `jrkf-ar`, the joint filter
+//! with lost inputs predicted by an AR model.
 //!
 //! Agent `i` filters the stacked states `x^i = (B_iᵀ ⊗ I_D) z` of all the edges it measures,
 //! with `Q_i = B̄_iᵀ Q B̄_i` and `R_i = bdiag(R_ij / T)`:
@@ -11,71 +12,209 @@
 //!
 //! This is the optimal block-diagonal gain of the centralised filter (EUSIPCO Theorem; thesis
 //! Theorem 5.2): it exploits the correlation of the disturbances of one agent's edges, which the
-//! single-edge RKF ignores. Gains are computed once per step for all runs; each agent's
-//! covariance is frozen once it has converged to rounding level (no entry moves by more than
-//! `8 ε max|Σ|`, see [`crate::linalg::converged`]); the step allocates nothing.
+//! single-edge RKF ignores.
+//!
+//! **`jrkf-ar`**: thesis chapter 6 derives the predicted input for the single-edge filter, but
+//! nothing in it is specific to single edges: agent `i`'s joint filter predicts each of its edges
+//! with `Δt (u^i_{k−1} − û^j_{k−1})`, using the AR(p) prediction `û^j_{k−1} = Σ_l a_l ∘ u^j_{k−1−l}`
+//! for the links that lost the input this step (thesis 6.6, 6.9), and adds `Δt² Σ_n` (6.3, 6.10)
+//! to the diagonal block of each such edge in `Σ^i_{k|k−1}` (the predictions of different
+//! neighbours' inputs have independent errors).
+//!
+//! **Faults**: the measurements that did not arrive are left out of the update (the innovation
+//! covariance is taken over the observed edges only; the gain's columns of the others are zero).
+//!
+//! Gains are computed once per step for all runs when they depend only on the model; each
+//! agent's covariance is frozen once it has converged to rounding level (no entry moves by more
+//! than `8 ε max|Σ|`). Otherwise every (agent, run) carries its own joint covariance: one
+//! `M_i D`-sized Joseph step per agent, run and step. The steps allocate nothing.
 //!
 //! # References
-//! van der Marel & Rajan, EUSIPCO 2022, eq. (14); van der Marel, MSc thesis 2021, §5.3, Alg. 7.
+//! van der Marel & Rajan, EUSIPCO 2022, eq. (14); van der Marel, MSc thesis 2021, §5.3, Alg. 7,
+//! §6.1, Alg. 8.
+
+use std::sync::Arc;
 
 use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
 
-use super::{EdgeModel, Estimator, StepInput};
+use super::{
+    options_of, parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model,
+    Options, Step,
+};
 use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
+
+/// `kind = "jrkf"`.
+#[derive(Debug, Clone, Copy)]
+pub struct JrkfKind;
+/// `kind = "jrkf-ar"`.
+#[derive(Debug, Clone, Copy)]
+pub struct JrkfArKind;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+/// Options of `jrkf-ar`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArOptions {
+    /// Per-link, per-step probability of losing the neighbour's input (default `comm.p_fail`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    p_fail: Option<f64>,
+}
+
+impl EstimatorKind for JrkfKind {
+    fn name(&self) -> &'static str {
+        "jrkf"
+    }
+    fn about(&self) -> &'static str {
+        "joint relative Kalman filter, one per agent over its edges (EUSIPCO eq. 14)"
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config { ar: None }))
+    }
+}
+
+impl EstimatorKind for JrkfArKind {
+    fn name(&self) -> &'static str {
+        "jrkf-ar"
+    }
+    fn about(&self) -> &'static str {
+        "joint filter with lost inputs predicted by an AR model"
+    }
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        let opt: ArOptions = parse_options(o)?;
+        let p = opt.p_fail.unwrap_or(m.p_fail);
+        if !(0.0..=1.0).contains(&p) {
+            return Err(format!("option `p_fail` must lie in [0, 1], got {p}"));
+        }
+        if m.ar.is_none() {
+            return Err(
+                "jrkf-ar needs an AR model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
+                    .into(),
+            );
+        }
+        Ok(Arc::new(Config { ar: Some(p) }))
+    }
+}
+
+/// A configured joint filter: `ar` is `jrkf-ar`'s failure probability.
+#[derive(Debug, Clone, Copy)]
+struct Config {
+    ar: Option<f64>,
+}
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        match self.ar {
+            Some(p) => options_of(&ArOptions { p_fail: Some(p) }),
+            None => Options::new(),
+        }
+    }
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        Box::new(Jrkf::new(m, samples, runs, self.ar, self.shared_gain(m)))
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let d = m.dim as f64;
+        let cubes: f64 = m
+            .agent_edges
+            .iter()
+            .map(|r| (r.len() as f64 * d).powi(3))
+            .sum();
+        let squares: f64 = m
+            .agent_edges
+            .iter()
+            .map(|r| (r.len() as f64 * d).powi(2))
+            .sum();
+        let md = m.num_edges() as f64 * d;
+        if self.shared_gain(m) {
+            Cost {
+                bytes_per_run: md * 8.0 * 2.0,
+                bytes_shared: squares * 8.0 * 8.0,
+                flops_per_run_step: 2.0 * squares / m.agents.max(1) as f64 + 2.0 * md,
+                flops_shared_step: 6.0 * cubes,
+            }
+        } else {
+            Cost {
+                bytes_per_run: md * 8.0 * 2.0 + squares * 8.0 * 8.0,
+                bytes_shared: 0.0,
+                flops_per_run_step: 6.0 * cubes + 2.0 * md,
+                flops_shared_step: 0.0,
+            }
+        }
+    }
+    fn shared_gain(&self, m: &Model) -> bool {
+        !m.measurement_faults && self.ar.is_none_or(|p| p <= 0.0 || p >= 1.0)
+    }
+    fn link_failure(&self) -> Option<f64> {
+        self.ar
+    }
+}
 
 /// One agent's joint covariance recursion (and its gain, row-major).
 #[derive(Debug, Clone)]
-pub(crate) struct Block {
+struct Block {
     /// First state row of this agent (edge index × D).
-    pub(crate) row: usize,
-    pub(crate) n: usize,
+    row: usize,
+    n: usize,
     q: DMatrix<f64>,
     w: DMatrix<f64>,
-    pub(crate) sigma0: DMatrix<f64>,
-    pub(crate) sigma: DMatrix<f64>,
+    sigma: DMatrix<f64>,
     prior: DMatrix<f64>,
     s: DMatrix<f64>,
     kt: DMatrix<f64>,
     at: DMatrix<f64>,
     tmp: DMatrix<f64>,
-    pub(crate) gain: Vec<f64>,
-    /// Converged to rounding level (until an inflated step).
-    pub(crate) frozen: bool,
+    gain: Vec<f64>,
+    /// Converged to rounding level (until an inflated or partial step).
+    frozen: bool,
 }
 
 impl Block {
-    /// One Joseph-form covariance step; sets `frozen` once Σ has converged (see [`converged`]).
-    fn covariance_step(&mut self) {
-        self.covariance_step_inflated(&[], None);
-    }
-
-    /// As [`Block::covariance_step`], adding `extra` (D × D) to the prior's diagonal block of every
-    /// local edge `a` with `failed[a]` (a predicted neighbour input). An inflated step never
-    /// counts as converged.
-    pub(crate) fn covariance_step_inflated(
+    /// One Joseph-form covariance step. `extra` (D × D) is added to the prior's diagonal block
+    /// of every local edge `a` with `lost[a]` (a predicted neighbour input); the update uses the
+    /// local edges with `seen[a]` only (empty slices: all seen, none lost). Returns `false` when
+    /// the innovation covariance is not positive definite.
+    fn covariance_step(
         &mut self,
-        failed: &[bool],
+        lost: &[bool],
+        seen: &[bool],
         extra: Option<&DMatrix<f64>>,
-    ) {
+    ) -> bool {
         self.prior.copy_from(&self.sigma);
         self.prior += &self.q;
-        let mut inflated = false;
+        let mut partial = false;
         if let Some(x) = extra {
             let d = x.nrows();
-            for (a, _) in failed.iter().enumerate().filter(|(_, f)| **f) {
+            for (a, _) in lost.iter().enumerate().filter(|(_, f)| **f) {
                 let mut v = self.prior.view_mut((a * d, a * d), (d, d));
                 v += x;
-                inflated = true;
+                partial = true;
             }
         }
         self.s.copy_from(&self.prior);
         self.s += &self.w;
-        // Kᵀ = S⁻¹ Σ⁻ since S and Σ⁻ are symmetric.
+        // Kᵀ = S⁻¹ Σ⁻ since S and Σ⁻ are symmetric (rows/columns of unseen edges masked).
         self.kt.copy_from(&self.prior);
-        assert!(
-            spd_solve_in_place(&mut self.s, &mut self.kt),
-            "JRKF innovation covariance is positive definite"
-        );
+        if seen.iter().any(|s| !s) {
+            partial = true;
+            let d = self.n / seen.len();
+            for (a, _) in seen.iter().enumerate().filter(|(_, s)| !**s) {
+                for c in a * d..(a + 1) * d {
+                    for b in 0..self.n {
+                        self.s[(c, b)] = 0.0;
+                        self.s[(b, c)] = 0.0;
+                        self.kt[(c, b)] = 0.0;
+                    }
+                    self.s[(c, c)] = 1.0;
+                }
+            }
+        }
+        if !spd_solve_in_place(&mut self.s, &mut self.kt) {
+            return false;
+        }
         self.at.fill(0.0);
         self.at.fill_diagonal(1.0);
         self.at -= &self.kt;
@@ -85,29 +224,21 @@ impl Block {
         gemm_nn(&mut self.tmp, &self.w, &self.kt, 0.0);
         gemm_tn(&mut self.s, &self.kt, &self.tmp, 1.0);
         symmetrize(&mut self.s);
-        self.frozen = !inflated && converged(&self.s, &self.sigma);
+        self.frozen = !partial && converged(&self.s, &self.sigma);
         std::mem::swap(&mut self.s, &mut self.sigma);
         for a in 0..self.n {
             for b in 0..self.n {
                 self.gain[a * self.n + b] = self.kt[(b, a)];
             }
         }
+        self.sigma.iter().all(|v| v.is_finite())
     }
 }
 
-/// The JRKF of every agent.
-#[derive(Debug, Clone)]
-pub struct Jrkf {
-    runs: usize,
-    blocks: Vec<Block>,
-    x: Vec<f64>,
-    innov: Vec<f64>,
-    trace: f64,
-}
-
 /// The blocks of every agent, at `Σ_{0|0}`, and the largest block size.
-pub(crate) fn agent_blocks(m: &EdgeModel) -> (Vec<Block>, usize) {
+fn agent_blocks(m: &Model, samples: usize) -> (Vec<Block>, usize) {
     let d = m.dim;
+    let w_edges = m.mean_cov(samples);
     let mut blocks = Vec::with_capacity(m.agents);
     let mut max_n = 0;
     for range in &m.agent_edges {
@@ -124,15 +255,14 @@ pub(crate) fn agent_blocks(m: &EdgeModel) -> (Vec<Block>, usize) {
                     .view_mut((a * d, b * d), (d, d))
                     .copy_from(&m.edge_p0(e, f));
             }
-            w.view_mut((a * d, a * d), (d, d)).copy_from(&m.w[e]);
+            w.view_mut((a * d, a * d), (d, d)).copy_from(&w_edges[e]);
         }
         blocks.push(Block {
             row: range.start * d,
             n,
             q,
             w,
-            sigma: sigma0.clone(),
-            sigma0,
+            sigma: sigma0,
             prior: DMatrix::zeros(n, n),
             s: DMatrix::zeros(n, n),
             kt: DMatrix::zeros(n, n),
@@ -145,59 +275,225 @@ pub(crate) fn agent_blocks(m: &EdgeModel) -> (Vec<Block>, usize) {
     (blocks, max_n)
 }
 
+/// The joint filter of every agent.
+#[derive(Debug, Clone)]
+pub struct Jrkf {
+    runs: usize,
+    dim: usize,
+    dt: f64,
+    shared: bool,
+    /// `jrkf-ar`'s failure probability.
+    p_fail: Option<f64>,
+    edges: Vec<(usize, usize)>,
+    agent_edges: Vec<std::ops::Range<usize>>,
+    coeffs: Vec<Vec<f64>>,
+    extra: Option<DMatrix<f64>>,
+    /// Shared: `blocks[i]`; per run: `blocks[i * runs + r]`.
+    blocks: Vec<Block>,
+    x: Vec<f64>,
+    lost: Vec<bool>,
+    seen: Vec<bool>,
+    du: Vec<f64>,
+    innov: Vec<f64>,
+    /// Past node inputs (`jrkf-ar`), newest first.
+    hist: Vec<Vec<f64>>,
+    breakdown: Option<Breakdown>,
+}
+
 impl Jrkf {
-    /// For `runs` runs.
-    pub fn new(m: &EdgeModel, runs: usize) -> Self {
+    /// For `runs` runs; `p_fail` makes it `jrkf-ar` (which needs `m.ar`); `shared` selects the
+    /// shared-gain path (valid only when the gain does not depend on the data).
+    pub fn new(m: &Model, samples: usize, runs: usize, p_fail: Option<f64>, shared: bool) -> Self {
         let d = m.dim;
-        let (blocks, max_n) = agent_blocks(m);
-        let mut f = Self {
+        let (proto, max_n) = agent_blocks(m, samples);
+        let blocks = if shared {
+            proto
+        } else {
+            proto
+                .iter()
+                .flat_map(|b| std::iter::repeat_n(b.clone(), runs))
+                .collect()
+        };
+        let ar = p_fail.and(m.ar.as_ref());
+        let extra = ar.map(|ar| {
+            DMatrix::from_fn(d, d, |a, b| {
+                if a == b {
+                    m.dt * m.dt * ar.noise_var[a]
+                } else {
+                    0.0
+                }
+            })
+        });
+        Self {
             runs,
+            dim: d,
+            dt: m.dt,
+            shared,
+            p_fail,
+            edges: m.edges.clone(),
+            agent_edges: m.agent_edges.clone(),
+            coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
+            extra,
             blocks,
             x: vec![0.0; m.num_edges() * d * runs],
+            lost: vec![false; max_n / d.max(1)],
+            seen: vec![true; max_n / d.max(1)],
+            du: vec![0.0; max_n],
             innov: vec![0.0; max_n * runs],
-            trace: 0.0,
-        };
-        f.reset();
-        f
+            hist: vec![vec![0.0; m.agents * d * runs]; ar.map_or(0, |a| a.order() + 1)],
+            breakdown: None,
+        }
     }
 
-    /// Posterior covariance `Σ^i_{k|k}` of agent `i`'s edges.
-    pub fn covariance(&self, i: usize) -> &DMatrix<f64> {
-        &self.blocks[i].sigma
+    /// Posterior covariance `Σ^i_{k|k}` of agent `i`'s edges (in run `r` for the per-run path).
+    pub fn covariance(&self, i: usize, r: usize) -> &DMatrix<f64> {
+        if self.shared {
+            &self.blocks[i].sigma
+        } else {
+            &self.blocks[i * self.runs + r].sigma
+        }
+    }
+
+    fn fail(&mut self, i: usize) {
+        if self.breakdown.is_none() {
+            self.breakdown = Some(Breakdown {
+                what: format!(
+                    "the joint innovation covariance of agent {i} is not positive definite"
+                ),
+            });
+        }
+    }
+
+    fn step_shared(&mut self, s: &Step<'_>) {
+        let all_lost = self.p_fail.is_some_and(|p| p >= 1.0);
+        let r = self.runs;
+        let d = self.dim;
+        let mut failed = None;
+        for (i, b) in self.blocks.iter_mut().enumerate() {
+            if all_lost || !b.frozen {
+                let ne = b.n / d.max(1);
+                self.lost[..ne].fill(all_lost);
+                if !b.covariance_step(&self.lost[..ne], &[], self.extra.as_ref()) {
+                    failed = Some(i);
+                    break;
+                }
+            }
+        }
+        if let Some(i) = failed {
+            self.fail(i);
+            return;
+        }
+        for (i, range) in self.agent_edges.iter().enumerate() {
+            let b = &self.blocks[i];
+            let span = b.row * r..(b.row + b.n) * r;
+            if all_lost {
+                // Every input predicted by the AR model (per run).
+                for (a, e) in range.clone().enumerate() {
+                    let j = self.edges[e].1;
+                    for c in 0..d {
+                        for run in 0..r {
+                            let uj: f64 = self
+                                .coeffs
+                                .iter()
+                                .enumerate()
+                                .map(|(l, co)| co[c] * self.hist[l + 1][(j * d + c) * r + run])
+                                .sum();
+                            self.x[(b.row + a * d + c) * r + run] +=
+                                self.dt * (self.hist[0][(i * d + c) * r + run] - uj);
+                        }
+                    }
+                }
+            } else {
+                for (xv, dv) in self.x[span.clone()].iter_mut().zip(&s.du[span.clone()]) {
+                    *xv += dv;
+                }
+            }
+            let x = &mut self.x[span.clone()];
+            let innov = &mut self.innov[..b.n * r];
+            for ((v, yv), xv) in innov.iter_mut().zip(&s.y[span]).zip(x.iter()) {
+                *v = yv - xv;
+            }
+            batch_gemv_acc(&b.gain, b.n, innov, x, r);
+        }
+    }
+
+    fn step_per_run(&mut self, s: &Step<'_>) {
+        let (r, d) = (self.runs, self.dim);
+        let p_fail = self.p_fail.unwrap_or(0.0);
+        for (i, range) in self.agent_edges.iter().enumerate() {
+            let ne = range.len();
+            for run in 0..r {
+                for (a, e) in range.clone().enumerate() {
+                    self.seen[a] = s.faults.observed(e, run);
+                    self.lost[a] = !s.faults.input_arrives(e, run, p_fail);
+                }
+                let b = &mut self.blocks[i * r + run];
+                let any_lost = self.lost[..ne].iter().any(|f| *f);
+                let all_seen = self.seen[..ne].iter().all(|f| *f);
+                if (!b.frozen || any_lost || !all_seen)
+                    && !b.covariance_step(&self.lost[..ne], &self.seen[..ne], self.extra.as_ref())
+                {
+                    self.breakdown.get_or_insert(Breakdown {
+                        what: format!(
+                            "the joint innovation covariance of agent {i} is not positive definite"
+                        ),
+                    });
+                    return;
+                }
+                let n = b.n;
+                for (a, e) in range.clone().enumerate() {
+                    let j = self.edges[e].1;
+                    for c in 0..d {
+                        let row = (e * d + c) * r + run;
+                        self.du[a * d + c] = if !self.lost[a] {
+                            s.du[row]
+                        } else if self.extra.is_some() {
+                            let uj: f64 = self
+                                .coeffs
+                                .iter()
+                                .enumerate()
+                                .map(|(l, co)| co[c] * self.hist[l + 1][(j * d + c) * r + run])
+                                .sum();
+                            self.dt * (self.hist[0][(i * d + c) * r + run] - uj)
+                        } else {
+                            // `jrkf` without a model: û^j = 0.
+                            self.dt * s.u_prev[(i * d + c) * r + run]
+                        };
+                        self.x[row] += self.du[a * d + c];
+                        self.innov[a * d + c] = if self.seen[a] {
+                            s.y[row] - self.x[row]
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+                for a in 0..n {
+                    let row = (b.row + a) * r + run;
+                    for (c, v) in self.innov[..n].iter().enumerate() {
+                        let k = b.gain[a * n + c];
+                        if k != 0.0 {
+                            self.x[row] += k * v;
+                        }
+                    }
+                }
+            }
+        }
     }
 }
 
 impl Estimator for Jrkf {
-    fn reset(&mut self) {
-        for b in &mut self.blocks {
-            b.sigma.copy_from(&b.sigma0);
-            b.frozen = false;
+    fn step(&mut self, s: &Step<'_>) {
+        if self.breakdown.is_some() {
+            return;
         }
-        self.trace = self.blocks.iter().map(|b| b.sigma.trace()).sum();
-        self.x.fill(0.0);
-    }
-
-    fn step(&mut self, input: &StepInput<'_>) {
-        if self.blocks.iter().any(|b| !b.frozen) {
-            for b in self.blocks.iter_mut().filter(|b| !b.frozen) {
-                b.covariance_step();
-            }
-            self.trace = self.blocks.iter().map(|b| b.sigma.trace()).sum();
+        if !self.hist.is_empty() {
+            self.hist.rotate_right(1);
+            self.hist[0].copy_from_slice(s.u_prev);
         }
-        let r = self.runs;
-        for b in &self.blocks {
-            let span = b.row * r..(b.row + b.n) * r;
-            let x = &mut self.x[span.clone()];
-            let innov = &mut self.innov[..b.n * r];
-            for ((xi, dui), (yi, v)) in x
-                .iter_mut()
-                .zip(&input.du[span.clone()])
-                .zip(input.y[span].iter().zip(innov.iter_mut()))
-            {
-                *xi += dui;
-                *v = yi - *xi;
-            }
-            batch_gemv_acc(&b.gain, b.n, innov, x, r);
+        if self.shared {
+            self.step_shared(s);
+        } else {
+            self.step_per_run(s);
         }
     }
 
@@ -205,7 +501,21 @@ impl Estimator for Jrkf {
         &self.x
     }
 
-    fn cov_trace(&self) -> f64 {
-        self.trace
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        if self.shared {
+            out.fill(self.blocks.iter().map(|b| b.sigma.trace()).sum());
+            return;
+        }
+        let r = self.runs;
+        for (run, o) in out.iter_mut().enumerate() {
+            *o = (0..self.agent_edges.len())
+                .filter(|&i| s.faults.present(i, run))
+                .map(|i| self.blocks[i * r + run].sigma.trace())
+                .sum();
+        }
+    }
+
+    fn breakdown(&self) -> Option<&Breakdown> {
+        self.breakdown.as_ref()
     }
 }

@@ -1,42 +1,134 @@
-//! Maximum likelihood estimator, and `none` as its T = 1 case.
+//! Maximum likelihood estimator (`mle`), and `none` as its T = 1 case.
 //!
 //! Thesis (4.16): `ẑ_ij = (Hᵀ R̃⁻¹ H)⁻¹ Hᵀ R̃⁻¹ y_ij = (1/T) Hᵀ y_ij`, the mean of the T samples;
 //! posterior covariance (4.17) `R_ij / T`. With T = 1 it is the raw measurement used without any
 //! estimator (thesis Alg. 2; `cov_trace` = Σ tr R_ij).
 //!
+//! Without a measurement (a lost edge, Li & Rajan's intermittent observations) there is no
+//! estimate: the edge holds 0, which drops it from the control law — the "no estimator" baseline
+//! of Li & Rajan Figs 11–12, whose controller runs on the functional graph. `cov_trace` then sums
+//! over the edges that were observed.
+//!
 //! # References
-//! van der Marel, MSc thesis, TU Delft 2021, §4.3; van der Marel & Rajan, EUSIPCO 2022, §2.1.
+//! van der Marel, MSc thesis, TU Delft 2021, §4.3; van der Marel & Rajan, EUSIPCO 2022, §2.1;
+//! Li & Rajan, OJCSYS 2026, §VI-C.
 
-use super::{EdgeModel, Estimator, StepInput};
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::{parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
+
+/// `kind = "none"`: one raw sample per step.
+#[derive(Debug, Clone, Copy)]
+pub struct NoneKind;
+/// `kind = "mle"`: the mean of the T samples.
+#[derive(Debug, Clone, Copy)]
+pub struct MleKind;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+impl EstimatorKind for NoneKind {
+    fn name(&self) -> &'static str {
+        "none"
+    }
+    fn about(&self) -> &'static str {
+        "no estimator: one raw measurement per step (thesis Alg. 2)"
+    }
+    fn fixed_samples(&self) -> Option<usize> {
+        Some(1)
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config))
+    }
+}
+
+impl EstimatorKind for MleKind {
+    fn name(&self) -> &'static str {
+        "mle"
+    }
+    fn about(&self) -> &'static str {
+        "maximum likelihood: the mean of the T measurements (thesis 4.16)"
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config))
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Config;
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        Options::new()
+    }
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        Box::new(Mle::new(m, samples, runs))
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let md = (m.num_edges() * m.dim) as f64;
+        Cost {
+            bytes_per_run: md * 8.0,
+            flops_per_run_step: md,
+            ..Cost::default()
+        }
+    }
+}
 
 /// The MLE: the edge estimate is the measurement mean.
 #[derive(Debug, Clone)]
 pub struct Mle {
+    runs: usize,
+    dim: usize,
     x: Vec<f64>,
-    trace: f64,
+    /// `tr(R_ij / T)` per edge.
+    traces: Vec<f64>,
 }
 
 impl Mle {
-    /// For `runs` runs.
-    pub fn new(m: &EdgeModel, runs: usize) -> Self {
+    /// For `runs` runs with `samples` measurements per step.
+    pub fn new(m: &Model, samples: usize, runs: usize) -> Self {
         Self {
+            runs,
+            dim: m.dim,
             x: vec![0.0; m.num_edges() * m.dim * runs],
-            trace: m.w.iter().map(|w| w.trace()).sum(),
+            traces: m.mean_cov(samples).iter().map(|w| w.trace()).collect(),
         }
     }
 }
 
 impl Estimator for Mle {
-    fn reset(&mut self) {
-        self.x.fill(0.0);
-    }
-    fn step(&mut self, input: &StepInput<'_>) {
-        self.x.copy_from_slice(input.y);
+    fn step(&mut self, s: &Step<'_>) {
+        self.x.copy_from_slice(s.y);
+        if s.faults.measurement_faults() {
+            let (r, d) = (self.runs, self.dim);
+            for e in 0..self.traces.len() {
+                for (run, &seen) in s.faults.observed_row(e).iter().enumerate() {
+                    if !seen {
+                        for a in 0..d {
+                            self.x[(e * d + a) * r + run] = 0.0;
+                        }
+                    }
+                }
+            }
+        }
     }
     fn estimates(&self) -> &[f64] {
         &self.x
     }
-    fn cov_trace(&self) -> f64 {
-        self.trace
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = self
+                .traces
+                .iter()
+                .enumerate()
+                .filter(|&(e, _)| s.faults.observed(e, r))
+                .map(|(_, t)| t)
+                .sum();
+        }
     }
 }

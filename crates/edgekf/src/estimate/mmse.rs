@@ -1,4 +1,4 @@
-//! MMSE filter with a fixed prior (thesis §4.4).
+//! MMSE filter with a fixed prior (`mmse`; thesis §4.4).
 //!
 //! Prior `z_k^{ij} ~ N(ẑ_{k−1}^{ij}, Σ_ij)` with `Σ_ij = σ²_prior I` (4.18); update (4.20)
 //! `ẑ_k = ẑ_{k−1} + Σ Hᵀ (H Σ Hᵀ + R̃)⁻¹ (y_k − H ẑ_{k−1}) = ẑ_{k−1} + Σ (Σ + R/T)⁻¹ (ȳ_k − ẑ_{k−1})`;
@@ -8,64 +8,123 @@
 //! Thesis (4.21) prints `(Σ⁻¹ − Hᵀ R̃⁻¹ H)⁻¹`; the information adds, so it is `+`.
 //!
 //! The prior mean at k = 1 is `ẑ_0 = E z_ij = 0`. The gain is constant, so the MMSE filter does not
-//! predict with the inputs: it lags behind moving edges, which is what Fig. 4.6 shows.
+//! predict with the inputs: it lags behind moving edges, which is what Fig. 4.6 shows. Without a
+//! measurement the estimate is held (the prior mean is the last estimate).
+
+use std::sync::Arc;
 
 use nalgebra::SMatrix;
+use serde::{Deserialize, Serialize};
 
-use super::{to_static, EdgeModel, Estimator, StepInput};
+use super::{
+    options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
+    Options, Step,
+};
+use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
+
+/// `kind = "mmse"`.
+#[derive(Debug, Clone, Copy)]
+pub struct Kind;
+
+/// Options of `mmse`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MmseOptions {
+    /// σ²_prior (required).
+    prior_var: f64,
+}
+
+impl EstimatorKind for Kind {
+    fn name(&self) -> &'static str {
+        "mmse"
+    }
+    fn about(&self) -> &'static str {
+        "MMSE filter with a fixed prior σ²_prior I around the last estimate (thesis 4.20)"
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        let opt: MmseOptions = parse_options(o)?;
+        let v = opt.prior_var;
+        if !(v.is_finite() && v > 0.0) {
+            return Err(format!("option `prior_var` must be > 0, got {v}"));
+        }
+        Ok(Arc::new(Config(opt)))
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Config(MmseOptions);
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        options_of(&self.0)
+    }
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        by_dim!(m.dim, D => Box::new(Mmse::<D>::new(m, samples, self.0.prior_var, runs)))
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let me = m.num_edges() as f64;
+        let d = m.dim as f64;
+        Cost {
+            bytes_per_run: me * d * 8.0 * 2.0,
+            flops_per_run_step: me * 2.0 * d * d,
+            ..Cost::default()
+        }
+    }
+}
 
 /// Fixed-gain MMSE filter.
 #[derive(Debug, Clone)]
 pub struct Mmse<const D: usize> {
     runs: usize,
     gains: Vec<f64>,
+    traces: Vec<f64>,
     x: Vec<f64>,
     innov: Vec<f64>,
-    trace: f64,
 }
 
 impl<const D: usize> Mmse<D> {
     /// With prior variance `prior_var`, for `runs` runs.
-    ///
-    /// # Panics
-    /// If a measurement covariance is singular (the scenario check prevents it for σ_v > 0).
-    pub fn new(m: &EdgeModel, prior_var: f64, runs: usize) -> Self {
+    pub fn new(m: &Model, samples: usize, prior_var: f64, runs: usize) -> Self {
         let prior = SMatrix::<f64, D, D>::identity() * prior_var;
         let mut gains = Vec::with_capacity(m.num_edges() * D * D);
-        let mut trace = 0.0;
-        for w in &m.w {
+        let mut traces = Vec::with_capacity(m.num_edges());
+        for w in &m.mean_cov(samples) {
             let w = to_static::<D>(w);
-            let k = prior
-                * (prior + w)
-                    .try_inverse()
-                    .expect("prior + R/T is positive definite");
+            // prior is positive definite and W ⪰ 0, so prior + W is invertible.
+            let k = prior * (prior + w).try_inverse().unwrap_or_else(SMatrix::zeros);
             gains.extend(k.transpose().iter().copied());
             // Posterior covariance (I − K) Σ = (Σ⁻¹ + W⁻¹)⁻¹ without inverting a singular W.
-            trace += ((SMatrix::<f64, D, D>::identity() - k) * prior).trace();
+            traces.push(((SMatrix::<f64, D, D>::identity() - k) * prior).trace());
         }
         Self {
             runs,
             gains,
+            traces,
             x: vec![0.0; m.num_edges() * D * runs],
             innov: vec![0.0; D * runs],
-            trace,
         }
     }
 }
 
 impl<const D: usize> Estimator for Mmse<D> {
-    fn reset(&mut self) {
-        self.x.fill(0.0);
-    }
-    fn step(&mut self, input: &StepInput<'_>) {
+    fn step(&mut self, s: &Step<'_>) {
         let r = self.runs;
         let block = D * r;
         for (e, k) in self.gains.chunks_exact(D * D).enumerate() {
             let x = &mut self.x[e * block..(e + 1) * block];
-            let y = &input.y[e * block..(e + 1) * block];
+            let y = &s.y[e * block..(e + 1) * block];
             for ((v, yi), xi) in self.innov.iter_mut().zip(y).zip(x.iter()) {
                 *v = yi - xi;
+            }
+            if s.faults.measurement_faults() {
+                for (run, &seen) in s.faults.observed_row(e).iter().enumerate() {
+                    if !seen {
+                        for a in 0..D {
+                            self.innov[a * r + run] = 0.0;
+                        }
+                    }
+                }
             }
             batch_gemv_acc(k, D, &self.innov, x, r);
         }
@@ -73,7 +132,15 @@ impl<const D: usize> Estimator for Mmse<D> {
     fn estimates(&self) -> &[f64] {
         &self.x
     }
-    fn cov_trace(&self) -> f64 {
-        self.trace
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = self
+                .traces
+                .iter()
+                .enumerate()
+                .filter(|&(e, _)| s.faults.tracked(e, r))
+                .map(|(_, t)| t)
+                .sum();
+        }
     }
 }

@@ -1,9 +1,12 @@
-//! Edge-state estimators behind one trait.
+//! Edge-state estimators: one trait for the family, one small module per member, and the
+//! registry that turns a scenario entry (`kind = "…"` plus that kind's options) into a configured
+//! estimator.
 //!
-//! Every estimator tracks the directed edges `z_ij = z_i − z_j` of the sensing graph and is run
-//! for a batch of Monte Carlo runs in lockstep: the gain of every filter here depends only on the
-//! model, not on the data, so it is computed once per step and applied to all runs (see
-//! [`crate::linalg`] for the batch layout: one row per state component, runs innermost).
+//! Every estimator tracks the directed edges `z_ij = z_i − z_j` of the sensing graph for a batch
+//! of Monte Carlo runs in lockstep (see [`crate::linalg`] for the batch layout: one row per state
+//! component, runs innermost). Filters whose gain depends only on the model compute it once per
+//! step for all runs; filters whose gain depends on the run's data (lost links, intermittent
+//! observations) keep one covariance per run as structure-of-arrays ([`batch`]).
 //!
 //! | name | module | equations |
 //! |---|---|---|
@@ -11,296 +14,234 @@
 //! | `mle` | [`mle`] | thesis (4.16)–(4.17); EUSIPCO §2.1 |
 //! | `mmse` | [`mmse`] | thesis (4.18)–(4.21) (4.21 with `+`) |
 //! | `rkf` | [`rkf`] | EUSIPCO (5a)–(5g) = thesis (4.27)–(4.33) |
+//! | `rkf-zero` | [`rkf`] | thesis §6.3 benchmark: neighbour input taken as 0 |
+//! | `rkf-ar` | [`rkf`] | thesis (6.2)–(6.10), Alg. 8: lost inputs predicted by AR(p) |
+//! | `rkf-commless` | [`rkf_commless`] | thesis (6.11)–(6.18), Alg. 9: no communication |
 //! | `jrkf` | [`jrkf`] | EUSIPCO (14a)–(14g) = thesis (5.19)–(5.25) |
+//! | `jrkf-ar` | [`jrkf`] | EUSIPCO (14) with the predicted inputs of thesis (6.2)–(6.10) |
 //! | `crkf` | [`crkf`] | EUSIPCO (9a)–(9g) = thesis (5.6)–(5.12) |
 //! | `oracle` | [`oracle`] | the true edges (noiseless reference) |
-//! | `rkf-ar` | [`rkf_ar`] | thesis (6.2)–(6.10), Alg. 8: lost inputs predicted by AR(p) |
-//! | `rkf-zero` | [`rkf`] | thesis §6.3 benchmark: neighbour input taken as 0 |
-//! | `rkf-commless` | [`rkf_commless`] | thesis (6.11)–(6.18), Alg. 9: no communication |
-//! | `jrkf-ar` | [`jrkf_ar`] | EUSIPCO (14) with the predicted inputs of thesis (6.2)–(6.10) |
 //!
 //! # T measurements per step
 //! With `H = 1_T ⊗ I_D` and `R̃ = I_T ⊗ R_ij`, `Hᵀ R̃⁻¹ H = T R_ij⁻¹` and `Hᵀ R̃⁻¹ y = T R_ij⁻¹ ȳ`
 //! with `ȳ` the mean of the T samples, so every estimator here is exactly the same function of
 //! `ȳ ~ N(z_ij, R_ij / T)`; the engine draws `ȳ` directly (DESIGN.md).
 //!
+//! # Faults
+//! What an estimator may use at a step comes from the engine's faults stage through
+//! [`Faults`]: whether edge `(i, j)`'s measurement reached agent `i` this step
+//! ([`Faults::observed`]), whether the neighbour's input message arrived
+//! ([`Faults::input_arrives`], which also applies an estimator's own link-failure probability of
+//! thesis chapter 6), and which agents are present. The rules live there, not in the estimators.
+//!
 //! # Adding an estimator
-//! Write a module with a struct implementing [`Estimator`], add a variant to [`EstimatorKind`]
-//! and to [`AnyEstimator`], and a line to the table above and to the README.
+//! Write `estimate/<name>.rs` with a unit struct implementing [`EstimatorKind`] (its name, its
+//! options as a `serde` struct with `deny_unknown_fields`, and how it builds) and a struct
+//! implementing [`Estimator`], with the equations in the module doc; then add one line to
+//! [`Registry::builtin`]. A caller can also register a kind of its own with
+//! [`Registry::with`] (see `tests/registry.rs`).
 
 pub mod ar;
+pub mod batch;
 pub mod crkf;
 pub mod jrkf;
-pub mod jrkf_ar;
 pub mod mle;
 pub mod mmse;
 pub mod oracle;
 pub mod rkf;
-pub mod rkf_ar;
 pub mod rkf_commless;
 
+use std::fmt;
+use std::sync::{Arc, OnceLock};
+
 use nalgebra::{DMatrix, SMatrix};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
 
-use crate::scenario::Scenario;
+use crate::framework::Framework;
 
-/// What one step gives an estimator. All batches have runs innermost.
+pub use ar::ArModel;
+
+/// An estimator's options as written in a scenario file (the entry without `kind`, `label` and
+/// `samples`).
+pub type Options = serde_json::Map<String, serde_json::Value>;
+
+/// Which measurements and messages reached whom at this step: the faults stage's output, shared
+/// by every estimator of a run (so different estimators see the same faults: paired
+/// comparisons). All arrays have runs innermost.
+#[derive(Debug, Clone)]
+pub struct Faults {
+    runs: usize,
+    agents: usize,
+    edges: Vec<(usize, usize)>,
+    measurement_faults: bool,
+    observed: Vec<bool>,
+    comm: Vec<f64>,
+    present: Vec<bool>,
+}
+
+impl Faults {
+    /// No faults: every measurement and message arrives, every agent is present.
+    pub fn none(agents: usize, edges: &[(usize, usize)], runs: usize) -> Self {
+        Self {
+            runs,
+            agents,
+            edges: edges.to_vec(),
+            measurement_faults: false,
+            observed: vec![true; edges.len() * runs],
+            comm: Vec::new(),
+            present: vec![true; agents * runs],
+        }
+    }
+
+    /// Runs in the batch.
+    pub fn runs(&self) -> usize {
+        self.runs
+    }
+
+    /// Whether any measurement can be missing in this scenario (lost or unavailable edges,
+    /// departed agents). When `false`, [`Faults::observed`] is always `true`, and filters may
+    /// share one gain across runs.
+    pub fn measurement_faults(&self) -> bool {
+        self.measurement_faults
+    }
+
+    /// Whether agent `i` received its measurement of edge `e = (i, j)` in run `r` this step
+    /// (Li & Rajan's `β_ij,k`: the edge is available, not permanently lost, and both agents are
+    /// present).
+    #[inline]
+    pub fn observed(&self, e: usize, r: usize) -> bool {
+        self.observed[e * self.runs + r]
+    }
+
+    /// [`Faults::observed`] for every run of edge `e`.
+    #[inline]
+    pub fn observed_row(&self, e: usize) -> &[bool] {
+        &self.observed[e * self.runs..(e + 1) * self.runs]
+    }
+
+    /// Whether neighbour `j`'s input `u^j_{k−1}` reached agent `i` over edge `e = (i, j)` in run
+    /// `r`, for an estimator whose links lose the message with probability `p_fail` per step
+    /// (thesis §6.1). One availability draw removes the measurement and the message together
+    /// (Li & Rajan have no separate communication model); the chapter 6 failures come from one
+    /// uniform per directed edge, step and run shared by all estimators, so different
+    /// `p_fail` are paired.
+    #[inline]
+    pub fn input_arrives(&self, e: usize, r: usize, p_fail: f64) -> bool {
+        if !self.observed(e, r) || p_fail >= 1.0 {
+            return false;
+        }
+        p_fail <= 0.0 || self.comm[e * self.runs + r] >= p_fail
+    }
+
+    /// Whether agent `i` is present (has not departed) in run `r`.
+    #[inline]
+    pub fn present(&self, i: usize, r: usize) -> bool {
+        self.present[i * self.runs + r]
+    }
+
+    /// Whether edge `e` is tracked in run `r`: its measuring agent is present.
+    #[inline]
+    pub fn tracked(&self, e: usize, r: usize) -> bool {
+        self.present(self.edges[e].0, r)
+    }
+
+    /// Number of agents.
+    pub fn agents(&self) -> usize {
+        self.agents
+    }
+
+    /// Mutable access for the faults stage (crate-internal).
+    pub(crate) fn parts_mut(&mut self) -> FaultsMut<'_> {
+        FaultsMut {
+            measurement_faults: &mut self.measurement_faults,
+            observed: &mut self.observed,
+            comm: &mut self.comm,
+            present: &mut self.present,
+        }
+    }
+}
+
+/// The faults stage's write access to [`Faults`].
+pub(crate) struct FaultsMut<'a> {
+    pub(crate) measurement_faults: &'a mut bool,
+    pub(crate) observed: &'a mut Vec<bool>,
+    pub(crate) comm: &'a mut Vec<f64>,
+    pub(crate) present: &'a mut Vec<bool>,
+}
+
+/// The target formation at this step (Li & Rajan eq. 2: `Z* = Θ* P + t* 1ᵀ`), when the scenario
+/// has a maneuver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    /// `Θ*`, D × D row-major.
+    pub theta: Vec<f64>,
+    /// `t*` (D).
+    pub shift: Vec<f64>,
+    /// `Z*`, agent-major (`i * D + d`).
+    pub positions: Vec<f64>,
+    /// `Ż*`, agent-major.
+    pub velocities: Vec<f64>,
+}
+
+/// Everything an estimator may read at step `k`: the outputs of the stages that run before
+/// estimation (world → faults → sensing). Batches have runs innermost.
 #[derive(Debug, Clone, Copy)]
-pub struct StepInput<'a> {
-    /// Node inputs of the previous step, `u_{k−1}` (ND rows).
-    pub u_prev: &'a [f64],
-    /// Prediction increments `Δt (u_{k−1}^i − u_{k−1}^j)` per directed edge (MD rows): what the
-    /// agent knows by one-hop communication.
-    pub du: &'a [f64],
-    /// Measurement means `ȳ_k^{ij}` (MD rows).
-    pub y: &'a [f64],
-    /// True edge states `x_k` (MD rows); only the `oracle` reads them.
-    pub x_true: &'a [f64],
-    /// One uniform draw per directed edge and run (M rows), shared by all estimators: a link
-    /// fails this step when its draw is below the estimator's `P_fail`. Empty when no estimator
-    /// of the scenario has `0 < P_fail < 1`.
-    pub link: &'a [f64],
+pub struct Step<'a> {
+    /// Step index k (1-based).
+    pub k: usize,
     /// Δt.
     pub dt: f64,
+    /// Measurement means `ȳ_k` for this estimator's T (MD rows); meaningful where observed.
+    pub y: &'a [f64],
+    /// Node inputs of the previous step `u_{k−1}` (ND rows).
+    pub u_prev: &'a [f64],
+    /// Prediction increments `Δt (u^i_{k−1} − u^j_{k−1})` per directed edge (MD rows): what the
+    /// agent knows when the neighbour's input arrives.
+    pub du: &'a [f64],
+    /// Measurement and message availability, agents present.
+    pub faults: &'a Faults,
+    /// The true edge states `x_k` (MD rows). Only the `oracle` reads them.
+    pub truth: &'a [f64],
+    /// The target formation at step k, if the scenario has one.
+    pub target: Option<&'a Target>,
 }
 
-/// The estimator family: initialise, then one predict–update step per time step.
+/// A numerical breakdown inside an estimator (a typed outcome, never a panic).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Breakdown {
+    /// What failed, e.g. "the innovation covariance of edge (3, 4) is not positive definite".
+    pub what: String,
+}
+
+/// The runtime estimator family: one predict–update step per time step for a batch of runs.
 pub trait Estimator: Send {
-    /// Back to `x̂_{0|0}`, `Σ_{0|0}` for every run.
-    fn reset(&mut self);
-    /// Predict with `u_{k−1}`, update with `ȳ_k`: afterwards [`Estimator::estimates`] is `x̂_{k|k}`.
-    fn step(&mut self, input: &StepInput<'_>);
-    /// `x̂_{k|k}` for every directed edge (MD rows × runs).
+    /// Predict with the inputs of step `k − 1`, update with the measurements of step `k`:
+    /// afterwards [`Estimator::estimates`] is `x̂_{k|k}`.
+    fn step(&mut self, s: &Step<'_>);
+    /// `x̂_{k|k}`: the position estimate of every directed edge (MD rows × runs), what the
+    /// controller uses. An edge without any estimate (e.g. `none` when its measurement was lost)
+    /// holds 0, which drops it from the control law.
     fn estimates(&self) -> &[f64];
-    /// Summed trace of the posterior covariances of all tracked edges.
-    fn cov_trace(&self) -> f64;
-}
-
-/// The estimator kinds a scenario can name.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum EstimatorKind {
-    /// One raw sample (thesis Alg. 2).
-    None,
-    /// MLE (thesis 4.16).
-    Mle,
-    /// MMSE with fixed prior `σ²_prior I` (thesis 4.20).
-    Mmse {
-        /// σ²_prior.
-        prior_var: f64,
-    },
-    /// Single-edge relative KF.
-    Rkf,
-    /// Joint (per-agent) relative KF.
-    Jrkf,
-    /// Centralised relative KF.
-    Crkf,
-    /// True edges.
-    Oracle,
-    /// RKF with AR prediction of inputs lost with probability `p_fail`.
-    RkfAr {
-        /// Per-step, per-link failure probability.
-        p_fail: f64,
-    },
-    /// RKF ignoring the neighbour's input.
-    RkfZero,
-    /// JRKF with AR prediction of inputs lost with probability `p_fail`.
-    JrkfAr {
-        /// Per-step, per-link failure probability.
-        p_fail: f64,
-    },
-    /// RKF without communication (Wiener prediction from edge estimates).
-    RkfCommless,
-}
-
-impl EstimatorKind {
-    /// Parses a name with its options (the MMSE prior variance; the failure probability of
-    /// `rkf-ar`, defaulting to `default_p_fail`).
-    ///
-    /// # Errors
-    /// A message for unknown names or a missing/invalid option.
-    pub fn parse(
-        name: &str,
-        prior_var: Option<f64>,
-        p_fail: Option<f64>,
-        default_p_fail: f64,
-    ) -> Result<Self, String> {
-        let k = match name {
-            "none" => Self::None,
-            "mle" => Self::Mle,
-            "mmse" => {
-                let v = prior_var.ok_or("mmse needs `prior_var` (σ²_prior)")?;
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(format!("prior_var must be > 0, got {v}"));
-                }
-                Self::Mmse { prior_var: v }
-            }
-            "rkf" => Self::Rkf,
-            "jrkf" => Self::Jrkf,
-            "crkf" => Self::Crkf,
-            "oracle" => Self::Oracle,
-            "rkf-ar" | "jrkf-ar" => {
-                let p = p_fail.unwrap_or(default_p_fail);
-                if !(0.0..=1.0).contains(&p) {
-                    return Err(format!("p_fail must lie in [0, 1], got {p}"));
-                }
-                if name == "rkf-ar" {
-                    Self::RkfAr { p_fail: p }
-                } else {
-                    Self::JrkfAr { p_fail: p }
-                }
-            }
-            "rkf-zero" => Self::RkfZero,
-            "rkf-commless" => Self::RkfCommless,
-            other => {
-                return Err(format!(
-                    "unknown estimator `{other}` (known: none, mle, mmse, rkf, jrkf, crkf, oracle, rkf-ar, rkf-zero, rkf-commless, jrkf-ar)"
-                ))
-            }
-        };
-        if prior_var.is_some() && !matches!(k, Self::Mmse { .. }) {
-            return Err(format!("`prior_var` applies to mmse only, not {name}"));
-        }
-        if p_fail.is_some() && k.p_fail().is_none() {
-            return Err(format!(
-                "`p_fail` applies to rkf-ar and jrkf-ar only, not {name}"
-            ));
-        }
-        Ok(k)
+    /// Per run, the summed trace of the posterior (position) covariances of the tracked edges.
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]);
+    /// Per run, a named quantity this estimator provides beyond the standard metrics (e.g.
+    /// `psi`); `false` when it does not provide `name`.
+    fn quantity(&self, _name: &str, _s: &Step<'_>, _out: &mut [f64]) -> bool {
+        false
     }
-
-    /// The name used in scenario files.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::None => "none",
-            Self::Mle => "mle",
-            Self::Mmse { .. } => "mmse",
-            Self::Rkf => "rkf",
-            Self::Jrkf => "jrkf",
-            Self::Crkf => "crkf",
-            Self::Oracle => "oracle",
-            Self::RkfAr { .. } => "rkf-ar",
-            Self::RkfZero => "rkf-zero",
-            Self::RkfCommless => "rkf-commless",
-            Self::JrkfAr { .. } => "jrkf-ar",
-        }
-    }
-
-    /// The failure probability of `rkf-ar`, if any.
-    pub fn p_fail(&self) -> Option<f64> {
-        match self {
-            Self::RkfAr { p_fail } | Self::JrkfAr { p_fail } => Some(*p_fail),
-            _ => None,
-        }
-    }
-
-    /// Whether the estimator predicts inputs with the AR model.
-    pub fn needs_ar(&self) -> bool {
-        matches!(
-            self,
-            Self::RkfAr { .. } | Self::JrkfAr { .. } | Self::RkfCommless
-        )
-    }
-
-    /// The MMSE prior variance, if any.
-    pub fn prior_var(&self) -> Option<f64> {
-        match self {
-            Self::Mmse { prior_var } => Some(*prior_var),
-            _ => None,
-        }
-    }
-
-    /// Builds the runtime estimator for `runs` runs in lockstep, with `samples` measurements per
-    /// step.
-    pub fn build<const D: usize>(
-        &self,
-        sc: &Scenario,
-        samples: usize,
-        runs: usize,
-    ) -> AnyEstimator<D> {
-        let m = EdgeModel::new(sc, samples);
-        match *self {
-            Self::None | Self::Mle => AnyEstimator::Mle(mle::Mle::new(&m, runs)),
-            Self::Mmse { prior_var } => AnyEstimator::Mmse(mmse::Mmse::new(&m, prior_var, runs)),
-            Self::Rkf => {
-                AnyEstimator::Rkf(rkf::Rkf::new(&m, runs, rkf::NeighbourInput::Known, sc.dt))
-            }
-            Self::RkfZero => {
-                AnyEstimator::Rkf(rkf::Rkf::new(&m, runs, rkf::NeighbourInput::Zero, sc.dt))
-            }
-            Self::RkfAr { p_fail } => AnyEstimator::RkfAr(rkf_ar::RkfAr::new(
-                &m,
-                runs,
-                p_fail,
-                sc.ar.as_ref().expect("checked"),
-                sc.dt,
-            )),
-            Self::RkfCommless => AnyEstimator::RkfCommless(rkf_commless::RkfCommless::new(
-                &m,
-                runs,
-                sc.ar.as_ref().expect("checked"),
-                sc.dt,
-            )),
-            Self::Jrkf => AnyEstimator::Jrkf(jrkf::Jrkf::new(&m, runs)),
-            Self::JrkfAr { p_fail } => AnyEstimator::JrkfAr(jrkf_ar::JrkfAr::new(
-                &m,
-                runs,
-                p_fail,
-                sc.ar.as_ref().expect("checked"),
-                sc.dt,
-            )),
-            Self::Crkf => AnyEstimator::Crkf(crkf::Crkf::new(&m, runs)),
-            Self::Oracle => AnyEstimator::Oracle(oracle::Oracle::new(&m, runs)),
-        }
+    /// A numerical breakdown, if one happened (then the engine stops this estimator).
+    fn breakdown(&self) -> Option<&Breakdown> {
+        None
     }
 }
 
-/// Static dispatch over the family.
-#[allow(missing_docs, clippy::large_enum_variant)]
-pub enum AnyEstimator<const D: usize> {
-    Mle(mle::Mle),
-    Mmse(mmse::Mmse<D>),
-    Rkf(rkf::Rkf<D>),
-    Jrkf(jrkf::Jrkf),
-    Crkf(crkf::Crkf),
-    Oracle(oracle::Oracle),
-    RkfAr(rkf_ar::RkfAr<D>),
-    RkfCommless(rkf_commless::RkfCommless<D>),
-    JrkfAr(jrkf_ar::JrkfAr),
-}
-
-macro_rules! dispatch {
-    ($s:expr, $e:ident => $body:expr) => {
-        match $s {
-            AnyEstimator::Mle($e) => $body,
-            AnyEstimator::Mmse($e) => $body,
-            AnyEstimator::Rkf($e) => $body,
-            AnyEstimator::Jrkf($e) => $body,
-            AnyEstimator::Crkf($e) => $body,
-            AnyEstimator::Oracle($e) => $body,
-            AnyEstimator::RkfAr($e) => $body,
-            AnyEstimator::RkfCommless($e) => $body,
-            AnyEstimator::JrkfAr($e) => $body,
-        }
-    };
-}
-
-impl<const D: usize> Estimator for AnyEstimator<D> {
-    fn reset(&mut self) {
-        dispatch!(self, e => e.reset())
-    }
-    fn step(&mut self, input: &StepInput<'_>) {
-        dispatch!(self, e => e.step(input))
-    }
-    fn estimates(&self) -> &[f64] {
-        dispatch!(self, e => e.estimates())
-    }
-    fn cov_trace(&self) -> f64 {
-        dispatch!(self, e => e.cov_trace())
-    }
-}
-
-/// The edge-level model every estimator is built from.
+/// The model every estimator is built from: the framework, the noise, Δt, and what the faults
+/// stage may do.
 #[derive(Debug, Clone)]
-pub struct EdgeModel {
+pub struct Model {
+    /// The framework (configuration, graph, weights, leaders).
+    pub framework: Framework,
     /// D.
     pub dim: usize,
     /// N.
@@ -311,30 +252,31 @@ pub struct EdgeModel {
     pub agent_edges: Vec<std::ops::Range<usize>>,
     /// Q (ND × ND).
     pub q: DMatrix<f64>,
-    /// `R_ij / T` per edge: the covariance of the measurement mean.
-    pub w: Vec<DMatrix<f64>>,
+    /// `R_ij` per directed edge (the covariance of one sample).
+    pub r: Vec<DMatrix<f64>>,
     /// P, the covariance of each initial position.
     pub p: DMatrix<f64>,
+    /// Δt.
+    pub dt: f64,
+    /// The AR model of the inputs (thesis chapter 6), if the scenario has one.
+    pub ar: Option<ArModel>,
+    /// The scenario-wide default link-failure probability of chapter 6 (`comm.p_fail`).
+    pub p_fail: f64,
+    /// Whether measurements can be missing (availability < 1, lost edges, departures).
+    pub measurement_faults: bool,
+    /// The directed edge whose covariance `edge_cov_trace` reports (`[metrics] edge`).
+    pub metric_edge: Option<usize>,
 }
 
-impl EdgeModel {
-    /// From a checked scenario, for an estimator using `samples` measurements per step.
-    pub fn new(sc: &Scenario, samples: usize) -> Self {
-        let g = sc.framework.graph();
-        Self {
-            dim: sc.framework.dim(),
-            agents: g.agents(),
-            edges: g.edges().to_vec(),
-            agent_edges: (0..g.agents()).map(|i| g.edges_of(i)).collect(),
-            q: sc.process_cov.clone(),
-            w: sc.meas_cov.iter().map(|r| r / samples as f64).collect(),
-            p: sc.init_cov.clone(),
-        }
-    }
-
+impl Model {
     /// Number of directed edges M.
     pub fn num_edges(&self) -> usize {
         self.edges.len()
+    }
+
+    /// `R_ij / T` per edge: the covariance of the measurement mean.
+    pub fn mean_cov(&self, samples: usize) -> Vec<DMatrix<f64>> {
+        self.r.iter().map(|r| r / samples as f64).collect()
     }
 
     /// The D × D block `(a, b)` of Q.
@@ -361,7 +303,168 @@ impl EdgeModel {
     }
 }
 
+/// Rough cost of an estimator, for the estimate made before a run (memory is refused when it
+/// cannot fit; time is reported).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Cost {
+    /// Bytes of state per run.
+    pub bytes_per_run: f64,
+    /// Bytes of state shared by all runs of a chunk.
+    pub bytes_shared: f64,
+    /// Floating-point operations per step and run.
+    pub flops_per_run_step: f64,
+    /// Floating-point operations per step shared by all runs of a chunk (gains).
+    pub flops_shared_step: f64,
+}
+
+/// A configured estimator: its checked options and how to build it.
+pub trait Configured: fmt::Debug + Send + Sync {
+    /// The options as they go to the resolved scenario (complete: defaults filled in).
+    fn options(&self) -> Options;
+    /// Builds the runtime estimator for `runs` runs in lockstep with `samples` measurements
+    /// per step.
+    fn build(&self, model: &Model, samples: usize, runs: usize) -> Box<dyn Estimator>;
+    /// Names of the quantities it reports through [`Estimator::quantity`] (extra metrics).
+    fn metrics(&self) -> &'static [&'static str] {
+        &[]
+    }
+    /// The cost of one run of it.
+    fn cost(&self, model: &Model) -> Cost;
+    /// Whether its gain is shared by all runs (then `cov_trace` is deterministic).
+    fn shared_gain(&self, model: &Model) -> bool {
+        !model.measurement_faults
+    }
+    /// Its chapter 6 link-failure probability (the engine draws the failure uniforms when some
+    /// estimator has one strictly between 0 and 1).
+    fn link_failure(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// A kind of estimator: its name in scenario files and how its options become a configured
+/// estimator.
+pub trait EstimatorKind: Send + Sync {
+    /// The name in scenario files (`kind = "…"`).
+    fn name(&self) -> &'static str;
+    /// One line about it.
+    fn about(&self) -> &'static str;
+    /// The fixed number of measurements per step, if the `samples` option does not apply
+    /// (`none` uses one raw sample).
+    fn fixed_samples(&self) -> Option<usize> {
+        None
+    }
+    /// Checks the kind's own options against the model.
+    ///
+    /// # Errors
+    /// A message naming the option and the problem (unknown options are refused, naming them).
+    fn configure(&self, options: &Options, model: &Model) -> Result<Arc<dyn Configured>, String>;
+}
+
+/// Parses a kind's options into its serde struct (which should `deny_unknown_fields`).
+///
+/// # Errors
+/// The deserializer's message, e.g. "unknown field `prior_var`, expected `p_fail`".
+pub fn parse_options<T: DeserializeOwned>(options: &Options) -> Result<T, String> {
+    serde_json::from_value(serde_json::Value::Object(options.clone())).map_err(|e| e.to_string())
+}
+
+/// Serialises a kind's options struct into [`Options`].
+pub fn options_of<T: Serialize>(options: &T) -> Options {
+    match serde_json::to_value(options) {
+        Ok(serde_json::Value::Object(m)) => m,
+        _ => Options::new(),
+    }
+}
+
+/// The estimator kinds a scenario may name.
+#[derive(Clone)]
+pub struct Registry {
+    kinds: Vec<Arc<dyn EstimatorKind>>,
+}
+
+impl fmt::Debug for Registry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(self.names()).finish()
+    }
+}
+
+impl Default for Registry {
+    fn default() -> Self {
+        Self::builtin().clone()
+    }
+}
+
+impl Registry {
+    /// The built-in estimators, one line each.
+    pub fn builtin() -> &'static Registry {
+        static BUILTIN: OnceLock<Registry> = OnceLock::new();
+        BUILTIN.get_or_init(|| Registry {
+            kinds: vec![
+                Arc::new(mle::NoneKind),
+                Arc::new(mle::MleKind),
+                Arc::new(mmse::Kind),
+                Arc::new(rkf::RkfKind),
+                Arc::new(rkf::RkfZeroKind),
+                Arc::new(rkf::RkfArKind),
+                Arc::new(rkf_commless::Kind),
+                Arc::new(jrkf::JrkfKind),
+                Arc::new(jrkf::JrkfArKind),
+                Arc::new(crkf::Kind),
+                Arc::new(oracle::Kind),
+            ],
+        })
+    }
+
+    /// This registry plus `kind` (replacing a kind of the same name).
+    #[must_use]
+    pub fn with(mut self, kind: impl EstimatorKind + 'static) -> Self {
+        self.kinds.retain(|k| k.name() != kind.name());
+        self.kinds.push(Arc::new(kind));
+        self
+    }
+
+    /// The kind called `name`.
+    pub fn find(&self, name: &str) -> Option<&dyn EstimatorKind> {
+        self.kinds
+            .iter()
+            .find(|k| k.name() == name)
+            .map(|k| k.as_ref())
+    }
+
+    /// Every name, in registration order.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.kinds.iter().map(|k| k.name()).collect()
+    }
+
+    /// Every kind.
+    pub fn kinds(&self) -> impl Iterator<Item = &dyn EstimatorKind> {
+        self.kinds.iter().map(|k| k.as_ref())
+    }
+}
+
 /// Converts a dynamic D × D matrix into a static one.
 pub(crate) fn to_static<const D: usize>(m: &DMatrix<f64>) -> SMatrix<f64, D, D> {
     SMatrix::<f64, D, D>::from_fn(|i, j| m[(i, j)])
+}
+
+/// Builds a const-generic estimator for the model's dimension.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! by_dim {
+    ($dim:expr, $d:ident => $body:expr) => {
+        match $dim {
+            1 => {
+                const $d: usize = 1;
+                $body
+            }
+            2 => {
+                const $d: usize = 2;
+                $body
+            }
+            _ => {
+                const $d: usize = 3;
+                $body
+            }
+        }
+    };
 }

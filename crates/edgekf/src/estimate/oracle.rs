@@ -1,7 +1,60 @@
 //! The oracle: the true edge states, as if measured without noise. The noiseless reference of
 //! thesis Fig. 4.5 and a baseline for any study; `cov_trace` is 0.
 
-use super::{EdgeModel, Estimator, StepInput};
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::{parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
+
+/// `kind = "oracle"`.
+#[derive(Debug, Clone, Copy)]
+pub struct Kind;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+impl EstimatorKind for Kind {
+    fn name(&self) -> &'static str {
+        "oracle"
+    }
+    fn about(&self) -> &'static str {
+        "the true edges (noiseless reference)"
+    }
+    fn fixed_samples(&self) -> Option<usize> {
+        Some(1)
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config))
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Config;
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        Options::new()
+    }
+    fn build(&self, m: &Model, _samples: usize, runs: usize) -> Box<dyn Estimator> {
+        Box::new(Oracle {
+            x: vec![0.0; m.num_edges() * m.dim * runs],
+        })
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let md = (m.num_edges() * m.dim) as f64;
+        Cost {
+            bytes_per_run: md * 8.0,
+            flops_per_run_step: md,
+            ..Cost::default()
+        }
+    }
+    fn shared_gain(&self, _m: &Model) -> bool {
+        true
+    }
+}
 
 /// True edges.
 #[derive(Debug, Clone)]
@@ -9,26 +62,14 @@ pub struct Oracle {
     x: Vec<f64>,
 }
 
-impl Oracle {
-    /// For `runs` runs.
-    pub fn new(m: &EdgeModel, runs: usize) -> Self {
-        Self {
-            x: vec![0.0; m.num_edges() * m.dim * runs],
-        }
-    }
-}
-
 impl Estimator for Oracle {
-    fn reset(&mut self) {
-        self.x.fill(0.0);
-    }
-    fn step(&mut self, input: &StepInput<'_>) {
-        self.x.copy_from_slice(input.x_true);
+    fn step(&mut self, s: &Step<'_>) {
+        self.x.copy_from_slice(s.truth);
     }
     fn estimates(&self) -> &[f64] {
         &self.x
     }
-    fn cov_trace(&self) -> f64 {
-        0.0
+    fn cov_trace(&self, _s: &Step<'_>, out: &mut [f64]) {
+        out.fill(0.0);
     }
 }

@@ -1,4 +1,6 @@
-//! Single-edge relative Kalman filter (RKF; the thesis's Edge-KF).
+//! Single-edge relative Kalman filter (RKF; the thesis's Edge-KF), with the neighbour's input
+//! known (`rkf`), taken as zero (`rkf-zero`) or predicted by an AR model when the link loses it
+//! (`rkf-ar`).
 //!
 //! For each directed edge `(i, j)`, with `Q_ij = B̄_ijᵀ Q B̄_ij` (EUSIPCO §3; thesis 4.26) and
 //! `W = R_ij / T`:
@@ -11,152 +13,191 @@
 //! - (5g)/(4.32) `Σ_{k|k} = (I − K) Σ_{k|k−1}`, computed in Joseph form
 //!   `(I − K) Σ (I − K)ᵀ + K W Kᵀ` so it stays symmetric PSD.
 //!
-//! The gain is the same for every run: it is computed once per step, and each edge's covariance
-//! is frozen once it has converged to rounding level (no entry moves by more than `8 ε max|Σ|`;
-//! the recursion then only adds rounding noise, see [`crate::linalg::converged`]).
+//! **`rkf-zero`** (thesis §6.3 benchmark): `û^j = 0`, no covariance inflation — biased whenever the
+//! neighbour moves.
 //!
-//! The same module serves `rkf-zero` (thesis §6.3 benchmark): the neighbour's input is taken as
-//! `û^j = 0`, with no covariance inflation — biased whenever the neighbour moves.
+//! **`rkf-ar`** (thesis §6.1, Algorithm 8): each directed link loses the neighbour's current input
+//! with probability `P_fail` per step ([`super::Faults::input_arrives`]). A lost `u^j_{k−1}` is
+//! predicted from the neighbour's past inputs with the one-step Wiener predictor of the AR(p)
+//! model (6.5)–(6.8), `û^j_{k−1} = Σ_l a_l ∘ u^j_{k−1−l}` (6.6, 6.9), and the prediction is
+//! inflated by its error covariance: (6.2) `ẑ_{k|k−1} = ẑ_{k−1|k−1} + Δt (u^i_{k−1} − û^j_{k−1})`,
+//! (6.3)/(6.10) `Σ_{k|k−1} = Σ_{k−1|k−1} + Q_ij + Δt² Σ_n`. Algorithm 8 line 18 adds `Σ_n` without
+//! the `Δt²` of (6.3); the input enters the edge as `Δt u`, so (6.3) is right and we use it.
+//!
+//! **Faults** (Li & Rajan's intermittent observations): when the measurement of an edge is lost,
+//! only the prediction runs (the gain is zero). When `rkf` or `rkf-zero` loses the neighbour's
+//! input message with the measurement, it predicts with `û^j = 0` (no model to do better);
+//! `rkf-ar` predicts it as above.
+//!
+//! # Shared or per-run gains
+//! The gain depends only on the model when every measurement arrives and the input failures are
+//! all-or-nothing (`P_fail ∈ {0, 1}`): it is computed once per step for all runs, and each edge's
+//! covariance is frozen once it has converged to rounding level (no entry moves by more than
+//! `8 ε max|Σ|`). Otherwise each (edge, run) has its own covariance in an [`EdgeBank`]; both
+//! paths use the same arithmetic ([`super::batch::joseph_step`]), so `rkf-ar` with
+//! `P_fail = 0` is the RKF bit for bit.
 //!
 //! # References
-//! van der Marel & Rajan, EUSIPCO 2022, eq. (5); van der Marel, MSc thesis 2021, §4.5, Alg. 5.
+//! van der Marel & Rajan, EUSIPCO 2022, eq. (5); van der Marel, MSc thesis 2021, §4.5, Alg. 5,
+//! §6.1, §6.3, Alg. 8; Li & Rajan, OJCSYS 2026, §V-B (intermittent observations).
 
-use nalgebra::SMatrix;
+use std::sync::Arc;
 
-use super::{to_static, EdgeModel, Estimator, StepInput};
+use serde::{Deserialize, Serialize};
+
+use super::batch::{EdgeBank, EdgeCov, Mat};
+use super::{
+    options_of, parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind,
+    Model, Options, Step,
+};
+use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
 
-pub(crate) type Mat<const D: usize> = SMatrix<f64, D, D>;
-
-/// One Kalman covariance/gain step in Joseph form: returns the posterior covariance and the gain.
-///
-/// # Panics
-/// If `Σ_{k|k−1} + W` is singular (only possible with zero noise and zero prior).
-#[inline]
-pub fn joseph_step<const D: usize>(prior: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
-    if D == 2 {
-        return joseph_2x2(prior, w);
-    }
-    let s = prior + w;
-    let k = prior
-        * s.try_inverse()
-            .expect("innovation covariance is positive definite");
-    let a = Mat::<D>::identity() - k;
-    let post = a * prior * a.transpose() + k * w * k.transpose();
-    (0.5 * (post + post.transpose()), k)
-}
-
-/// [`joseph_step`] for D = 2 in closed form (both matrices symmetric): the same arithmetic for
-/// the shared-gain and the per-run filters, about three times faster than the generic path.
-#[inline]
-fn joseph_2x2<const D: usize>(p: &Mat<D>, w: &Mat<D>) -> (Mat<D>, Mat<D>) {
-    let (p11, p12, p22) = (p[(0, 0)], p[(0, 1)], p[(1, 1)]);
-    let (w11, w12, w22) = (w[(0, 0)], w[(0, 1)], w[(1, 1)]);
-    let (s11, s12, s22) = (p11 + w11, p12 + w12, p22 + w22);
-    let det = s11 * s22 - s12 * s12;
-    assert!(det > 0.0, "innovation covariance is positive definite");
-    let r = 1.0 / det;
-    let (i11, i12, i22) = (s22 * r, -s12 * r, s11 * r);
-    let (k11, k12) = (p11 * i11 + p12 * i12, p11 * i12 + p12 * i22);
-    let (k21, k22) = (p12 * i11 + p22 * i12, p12 * i12 + p22 * i22);
-    let (a11, a12, a21, a22) = (1.0 - k11, -k12, -k21, 1.0 - k22);
-    // A Σ Aᵀ
-    let (m11, m12) = (a11 * p11 + a12 * p12, a11 * p12 + a12 * p22);
-    let (m21, m22) = (a21 * p11 + a22 * p12, a21 * p12 + a22 * p22);
-    let (c11, c12) = (m11 * a11 + m12 * a12, m11 * a21 + m12 * a22);
-    let (c21, c22) = (m21 * a11 + m22 * a12, m21 * a21 + m22 * a22);
-    // K W Kᵀ
-    let (n11, n12) = (k11 * w11 + k12 * w12, k11 * w12 + k12 * w22);
-    let (n21, n22) = (k21 * w11 + k22 * w12, k21 * w12 + k22 * w22);
-    let (d11, d12) = (n11 * k11 + n12 * k12, n11 * k21 + n12 * k22);
-    let (d21, d22) = (n21 * k11 + n22 * k12, n21 * k21 + n22 * k22);
-    let off = 0.5 * ((c12 + d12) + (c21 + d21));
-    let mut post = Mat::<D>::zeros();
-    post[(0, 0)] = c11 + d11;
-    post[(1, 1)] = c22 + d22;
-    post[(0, 1)] = off;
-    post[(1, 0)] = off;
-    let mut k = Mat::<D>::zeros();
-    k[(0, 0)] = k11;
-    k[(0, 1)] = k12;
-    k[(1, 0)] = k21;
-    k[(1, 1)] = k22;
-    (post, k)
-}
-
-/// The covariance recursion of one edge, frozen once converged to rounding level.
-///
-/// This is also the piece to embed on a real agent: one `EdgeCov` per neighbour, a 2-vector
-/// estimate, and per step the prediction with the communicated inputs and the update with the
-/// mean of the T measurements.
-///
-/// ```
-/// use edgekf::estimate::rkf::EdgeCov;
-/// use nalgebra::{Matrix2, Vector2};
-///
-/// let q = Matrix2::new(2e-6, 0.0, 0.0, 2e-6); // Q_ij = B̄_ijᵀ Q B̄_ij
-/// let w = Matrix2::new(1e-3, 3e-4, 3e-4, 1e-3); // R_ij / T
-/// let mut cov = EdgeCov::<2>::new(Matrix2::identity() * 2.0); // Σ_{0|0} = 2P
-/// let mut z = Vector2::zeros(); // ẑ_{0|0}
-/// let (dt, u_i, u_j) = (1e-3, Vector2::new(0.1, 0.0), Vector2::new(0.0, 0.2));
-/// for _ in 0..1000 {
-///     let y_mean = Vector2::new(1.0, -0.5); // mean of this step's T measurements of z_i − z_j
-///     z += dt * (u_i - u_j); // (5c)
-///     cov.step(&q, &w, None); // (5d), (5e), (5g)
-///     z += cov.gain * (y_mean - z); // (5f)
-/// }
-/// assert!(cov.sigma.trace() < 0.01);
-/// ```
+/// How the predictor knows the neighbour's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EdgeCov<const D: usize> {
-    /// Posterior covariance `Σ_{k|k}`.
-    pub sigma: Mat<D>,
-    /// Gain `K_k`.
-    pub gain: Mat<D>,
-    /// Converged: the next step would change nothing beyond rounding.
-    pub frozen: bool,
-}
-
-impl<const D: usize> EdgeCov<D> {
-    /// Starts at `Σ_{0|0}`.
-    pub fn new(sigma0: Mat<D>) -> Self {
-        Self {
-            sigma: sigma0,
-            gain: Mat::<D>::zeros(),
-            frozen: false,
-        }
-    }
-
-    /// One predict–update covariance step with process covariance `q` (plus `extra`, an input
-    /// prediction's covariance, which unfreezes) and measurement covariance `w`.
-    #[inline]
-    pub fn step(&mut self, q: &Mat<D>, w: &Mat<D>, extra: Option<&Mat<D>>) {
-        if self.frozen && extra.is_none() {
-            return;
-        }
-        let mut prior = self.sigma + q;
-        if let Some(x) = extra {
-            prior += x;
-        }
-        let (post, k) = joseph_step(&prior, w);
-        let tol = 8.0 * f64::EPSILON * self.sigma.amax();
-        self.frozen = extra.is_none()
-            && post
-                .iter()
-                .zip(self.sigma.iter())
-                .all(|(a, b)| (a - b).abs() <= tol);
-        self.sigma = post;
-        self.gain = k;
-    }
-}
-
-/// Whether the predictor knows the neighbour's input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum NeighbourInput {
-    /// Communicated (`rkf`).
+pub enum Input {
+    /// Communicated (`rkf`); `û^j = 0` when the message is lost with the measurement.
     Known,
     /// Taken as zero (`rkf-zero`).
     Zero,
+    /// Lost with probability `p_fail` per link and step, then predicted by the AR model
+    /// (`rkf-ar`).
+    Ar {
+        /// Per-step, per-link failure probability.
+        p_fail: f64,
+    },
+}
+
+/// `kind = "rkf"`.
+#[derive(Debug, Clone, Copy)]
+pub struct RkfKind;
+/// `kind = "rkf-zero"`.
+#[derive(Debug, Clone, Copy)]
+pub struct RkfZeroKind;
+/// `kind = "rkf-ar"`.
+#[derive(Debug, Clone, Copy)]
+pub struct RkfArKind;
+
+/// `rkf` and `rkf-zero` take no options.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+/// Options of `rkf-ar`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArOptions {
+    /// Per-link, per-step probability of losing the neighbour's input (default `comm.p_fail`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    p_fail: Option<f64>,
+}
+
+impl EstimatorKind for RkfKind {
+    fn name(&self) -> &'static str {
+        "rkf"
+    }
+    fn about(&self) -> &'static str {
+        "single-edge relative Kalman filter (EUSIPCO eq. 5)"
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config(Input::Known)))
+    }
+}
+
+impl EstimatorKind for RkfZeroKind {
+    fn name(&self) -> &'static str {
+        "rkf-zero"
+    }
+    fn about(&self) -> &'static str {
+        "RKF with the neighbour's input taken as zero (thesis §6.3 benchmark)"
+    }
+    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        Ok(Arc::new(Config(Input::Zero)))
+    }
+}
+
+impl EstimatorKind for RkfArKind {
+    fn name(&self) -> &'static str {
+        "rkf-ar"
+    }
+    fn about(&self) -> &'static str {
+        "RKF with lost inputs predicted by an AR model (thesis Alg. 8)"
+    }
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        let opt: ArOptions = parse_options(o)?;
+        let p = opt.p_fail.unwrap_or(m.p_fail);
+        if !(0.0..=1.0).contains(&p) {
+            return Err(format!("option `p_fail` must lie in [0, 1], got {p}"));
+        }
+        if m.ar.is_none() {
+            return Err(
+                "rkf-ar needs an AR model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
+                    .into(),
+            );
+        }
+        Ok(Arc::new(Config(Input::Ar { p_fail: p })))
+    }
+}
+
+/// A configured RKF.
+#[derive(Debug, Clone, Copy)]
+struct Config(Input);
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        match self.0 {
+            Input::Ar { p_fail } => options_of(&ArOptions {
+                p_fail: Some(p_fail),
+            }),
+            _ => Options::new(),
+        }
+    }
+
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        by_dim!(m.dim, D => Box::new(Rkf::<D>::new(m, samples, runs, self.0)))
+    }
+
+    fn cost(&self, m: &Model) -> Cost {
+        let me = m.num_edges() as f64;
+        let d = m.dim as f64;
+        let per_run = !self.shared_gain(m);
+        Cost {
+            bytes_per_run: me * d * 8.0 * if per_run { 4.0 } else { 1.0 },
+            bytes_shared: me * d * d * 8.0 * 4.0,
+            flops_per_run_step: me * (2.0 * d * d + 2.0 * d) * if per_run { 8.0 } else { 1.0 },
+            flops_shared_step: if per_run { 0.0 } else { me * 40.0 * d * d },
+        }
+    }
+
+    fn link_failure(&self) -> Option<f64> {
+        match self.0 {
+            Input::Ar { p_fail } => Some(p_fail),
+            _ => None,
+        }
+    }
+
+    fn shared_gain(&self, m: &Model) -> bool {
+        !m.measurement_faults
+            && match self.0 {
+                Input::Ar { p_fail } => p_fail <= 0.0 || p_fail >= 1.0,
+                _ => true,
+            }
+    }
+}
+
+/// The covariances: one per edge shared by all runs, or one per (edge, run).
+#[derive(Debug, Clone)]
+enum Covs<const D: usize> {
+    Shared {
+        covs: Vec<EdgeCov<D>>,
+        /// Gains row-major per edge, for the batched mean update.
+        gains: Vec<f64>,
+        x: Vec<f64>,
+        innov: Vec<f64>,
+    },
+    PerRun(EdgeBank<D>),
 }
 
 /// The RKF on every directed edge.
@@ -164,133 +205,272 @@ pub enum NeighbourInput {
 pub struct Rkf<const D: usize> {
     runs: usize,
     dt: f64,
-    dim_edges: Vec<(usize, usize)>,
-    input: NeighbourInput,
+    edges: Vec<(usize, usize)>,
+    input: Input,
     q: Vec<Mat<D>>,
     w: Vec<Mat<D>>,
-    sigma0: Vec<Mat<D>>,
-    covs: Vec<EdgeCov<D>>,
-    gains: Vec<f64>,
-    x: Vec<f64>,
-    innov: Vec<f64>,
+    covs: Covs<D>,
+    /// AR coefficients per lag and coordinate, and the inflation `Δt² Σ_n`.
+    coeffs: Vec<[f64; D]>,
+    extra: Mat<D>,
+    /// Past node inputs, newest first: `hist[l]` holds `u_{k−1−l}` (ND × runs each); only for
+    /// `rkf-ar`.
+    hist: Vec<Vec<f64>>,
+    breakdown: Option<Breakdown>,
 }
 
 impl<const D: usize> Rkf<D> {
-    /// For `runs` runs.
-    pub fn new(m: &EdgeModel, runs: usize, input: NeighbourInput, dt: f64) -> Self {
+    /// For `runs` runs with `samples` measurements per step.
+    ///
+    /// # Panics
+    /// For `Input::Ar` without an AR model in `m` (the kind checks it).
+    pub fn new(m: &Model, samples: usize, runs: usize, input: Input) -> Self {
         let ne = m.num_edges();
-        let q = (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect();
-        let w = m.w.iter().map(to_static::<D>).collect();
+        let q: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect();
+        let w: Vec<Mat<D>> = m.mean_cov(samples).iter().map(to_static::<D>).collect();
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
+        let (coeffs, extra, hist) = match input {
+            Input::Ar { .. } => {
+                let ar =
+                    m.ar.as_ref()
+                        .expect("rkf-ar is configured with an AR model");
+                let mut extra = Mat::<D>::zeros();
+                for d in 0..D {
+                    extra[(d, d)] = m.dt * m.dt * ar.noise_var[d];
+                }
+                (
+                    ar.coeffs
+                        .iter()
+                        .map(|a| std::array::from_fn(|d| a[d]))
+                        .collect(),
+                    extra,
+                    vec![vec![0.0; m.agents * D * runs]; ar.order() + 1],
+                )
+            }
+            _ => (Vec::new(), Mat::<D>::zeros(), Vec::new()),
+        };
+        let shared = Config(input).shared_gain(m);
+        let covs = if shared {
+            Covs::Shared {
+                covs: sigma0.iter().map(|s| EdgeCov::new(*s)).collect(),
+                gains: vec![0.0; ne * D * D],
+                x: vec![0.0; ne * D * runs],
+                innov: vec![0.0; D * runs],
+            }
+        } else {
+            Covs::PerRun(EdgeBank::new(&sigma0, runs))
+        };
         Self {
             runs,
-            dt,
-            dim_edges: m.edges.clone(),
+            dt: m.dt,
+            edges: m.edges.clone(),
             input,
             q,
             w,
-            covs: sigma0.iter().map(|s| EdgeCov::new(*s)).collect(),
-            sigma0,
-            gains: vec![0.0; ne * D * D],
-            x: vec![0.0; ne * D * runs],
-            innov: vec![0.0; D * runs],
+            covs,
+            coeffs,
+            extra,
+            hist,
+            breakdown: None,
         }
     }
 
-    /// Posterior covariance of edge `e`.
-    pub fn covariance(&self, e: usize) -> &Mat<D> {
-        &self.covs[e].sigma
-    }
-}
-
-/// `x ← x + du; x ← x + K (y − x)` for one edge and every run (the KF mean update with one gain).
-#[inline]
-pub(crate) fn edge_update<const D: usize>(
-    k: &[f64],
-    x: &mut [f64],
-    du: &[f64],
-    y: &[f64],
-    innov: &mut [f64],
-    runs: usize,
-) {
-    for ((xi, dui), (yi, v)) in x.iter_mut().zip(du).zip(y.iter().zip(innov.iter_mut())) {
-        *xi += dui;
-        *v = yi - *xi;
-    }
-    batch_gemv_acc(k, D, innov, x, runs);
-}
-
-impl<const D: usize> Estimator for Rkf<D> {
-    fn reset(&mut self) {
-        for (c, s) in self.covs.iter_mut().zip(&self.sigma0) {
-            *c = EdgeCov::new(*s);
+    /// Posterior covariance of edge `e` in run `r`.
+    pub fn covariance(&self, e: usize, r: usize) -> Mat<D> {
+        match &self.covs {
+            Covs::Shared { covs, .. } => covs[e].sigma,
+            Covs::PerRun(bank) => bank.sigma(e, r),
         }
-        self.x.fill(0.0);
     }
 
-    fn step(&mut self, input: &StepInput<'_>) {
-        let block = D * self.runs;
-        for (e, c) in self.covs.iter_mut().enumerate() {
-            c.step(&self.q[e], &self.w[e], None);
-            let g = &mut self.gains[e * D * D..(e + 1) * D * D];
+    fn fail(&mut self, e: usize) {
+        if self.breakdown.is_none() {
+            let (i, j) = self.edges[e];
+            self.breakdown = Some(Breakdown {
+                what: format!(
+                    "the innovation covariance of edge ({i}, {j}) is not positive definite"
+                ),
+            });
+        }
+    }
+
+    fn step_shared(&mut self, s: &Step<'_>) {
+        let extra = match self.input {
+            Input::Ar { p_fail } if p_fail >= 1.0 => Some(self.extra),
+            _ => None,
+        };
+        let Covs::Shared {
+            covs,
+            gains,
+            x,
+            innov,
+        } = &mut self.covs
+        else {
+            unreachable!("shared path")
+        };
+        let mut failed = None;
+        for (e, c) in covs.iter_mut().enumerate() {
+            if c.step(&self.q[e], &self.w[e], extra.as_ref(), true)
+                .is_err()
+            {
+                failed = Some(e);
+                break;
+            }
+            let g = &mut gains[e * D * D..(e + 1) * D * D];
             for a in 0..D {
                 for b in 0..D {
                     g[a * D + b] = c.gain[(a, b)];
                 }
             }
         }
+        if let Some(e) = failed {
+            self.fail(e);
+            return;
+        }
         let r = self.runs;
-        for e in 0..self.covs.len() {
+        let block = D * r;
+        for (e, &(i, j)) in self.edges.iter().enumerate() {
             let span = e * block..(e + 1) * block;
-            let k = &self.gains[e * D * D..(e + 1) * D * D];
-            match self.input {
-                NeighbourInput::Known => edge_update::<D>(
-                    k,
-                    &mut self.x[span.clone()],
-                    &input.du[span.clone()],
-                    &input.y[span],
-                    &mut self.innov,
-                    r,
-                ),
-                NeighbourInput::Zero => {
-                    // Δt u_i only: reuse `innov` as the increment buffer, then update in place.
-                    let i = self.dim_edges[e].0;
-                    let ui = &input.u_prev[i * block..(i + 1) * block];
-                    let x = &mut self.x[span.clone()];
-                    for (xi, u) in x.iter_mut().zip(ui) {
-                        *xi += self.dt * u;
+            let xe = &mut x[span.clone()];
+            match (self.input, extra.is_some()) {
+                (Input::Known, _) | (Input::Ar { .. }, false) => {
+                    for (xv, dv) in xe.iter_mut().zip(&s.du[span.clone()]) {
+                        *xv += dv;
                     }
-                    for ((v, yi), xi) in self.innov.iter_mut().zip(&input.y[span]).zip(x.iter()) {
-                        *v = yi - xi;
+                }
+                (Input::Zero, _) => {
+                    // Δt u_i only.
+                    let ui = &s.u_prev[i * block..(i + 1) * block];
+                    for (xv, u) in xe.iter_mut().zip(ui) {
+                        *xv += self.dt * u;
                     }
-                    batch_gemv_acc(k, D, &self.innov, x, r);
+                }
+                (Input::Ar { .. }, true) => {
+                    for run in 0..r {
+                        let inc =
+                            ar_increment_of::<D>(&self.coeffs, &self.hist, self.dt, r, i, j, run);
+                        for a in 0..D {
+                            xe[a * r + run] += inc[a];
+                        }
+                    }
+                }
+            }
+            for ((v, yv), xv) in innov.iter_mut().zip(&s.y[span]).zip(xe.iter()) {
+                *v = yv - xv;
+            }
+            batch_gemv_acc(&gains[e * D * D..(e + 1) * D * D], D, innov, xe, r);
+        }
+    }
+
+    fn step_per_run(&mut self, s: &Step<'_>) {
+        let runs = self.runs;
+        let p_fail = match self.input {
+            Input::Ar { p_fail } => p_fail,
+            _ => 0.0,
+        };
+        let mut failed = None;
+        for e in 0..self.edges.len() {
+            let (i, j) = self.edges[e];
+            for r in 0..runs {
+                let observed = s.faults.observed(e, r);
+                let arrives = s.faults.input_arrives(e, r, p_fail);
+                let (inc, extra) = match (self.input, arrives) {
+                    (Input::Zero, _) => (
+                        std::array::from_fn(|a| self.dt * s.u_prev[(i * D + a) * runs + r]),
+                        None,
+                    ),
+                    (_, true) => (std::array::from_fn(|a| s.du[(e * D + a) * runs + r]), None),
+                    (Input::Known, false) => (
+                        std::array::from_fn(|a| self.dt * s.u_prev[(i * D + a) * runs + r]),
+                        None,
+                    ),
+                    (Input::Ar { .. }, false) => (
+                        ar_increment_of::<D>(&self.coeffs, &self.hist, self.dt, runs, i, j, r),
+                        Some(self.extra),
+                    ),
+                };
+                let Covs::PerRun(bank) = &mut self.covs else {
+                    unreachable!("per-run path")
+                };
+                if bank
+                    .covariance_step(e, r, &self.q[e], &self.w[e], extra.as_ref(), observed)
+                    .is_err()
+                {
+                    failed = Some(e);
+                    break;
+                }
+                bank.mean_step(e, r, &inc, s.y);
+            }
+            if failed.is_some() {
+                break;
+            }
+        }
+        if let Some(e) = failed {
+            self.fail(e);
+        }
+    }
+}
+
+/// `Δt (u^i_{k−1} − û^j_{k−1})` with `û^j_{k−1} = Σ_l a_l ∘ u^j_{k−1−l}` (thesis 6.2, 6.6).
+fn ar_increment_of<const D: usize>(
+    coeffs: &[[f64; D]],
+    hist: &[Vec<f64>],
+    dt: f64,
+    runs: usize,
+    i: usize,
+    j: usize,
+    r: usize,
+) -> [f64; D] {
+    std::array::from_fn(|a| {
+        let mut uj = 0.0;
+        for (l, c) in coeffs.iter().enumerate() {
+            uj += c[a] * hist[l + 1][(j * D + a) * runs + r];
+        }
+        dt * (hist[0][(i * D + a) * runs + r] - uj)
+    })
+}
+
+impl<const D: usize> Estimator for Rkf<D> {
+    fn step(&mut self, s: &Step<'_>) {
+        if self.breakdown.is_some() {
+            return;
+        }
+        if !self.hist.is_empty() {
+            // hist[0] = u_{k−1}; hist[l] = u_{k−1−l}.
+            self.hist.rotate_right(1);
+            self.hist[0].copy_from_slice(s.u_prev);
+        }
+        match self.covs {
+            Covs::Shared { .. } => self.step_shared(s),
+            Covs::PerRun(_) => self.step_per_run(s),
+        }
+    }
+
+    fn estimates(&self) -> &[f64] {
+        match &self.covs {
+            Covs::Shared { x, .. } => x,
+            Covs::PerRun(bank) => &bank.x,
+        }
+    }
+
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        match &self.covs {
+            Covs::Shared { covs, .. } => {
+                let t: f64 = covs.iter().map(|c| c.sigma.trace()).sum();
+                out.fill(t);
+            }
+            Covs::PerRun(bank) => {
+                for (r, o) in out.iter_mut().enumerate() {
+                    *o = (0..self.edges.len())
+                        .filter(|&e| s.faults.tracked(e, r))
+                        .map(|e| bank.trace(e, r))
+                        .sum();
                 }
             }
         }
     }
 
-    fn estimates(&self) -> &[f64] {
-        &self.x
-    }
-
-    fn cov_trace(&self) -> f64 {
-        self.covs.iter().map(|c| c.sigma.trace()).sum()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn closed_form_2x2_matches_the_generic_joseph_form() {
-        let p = Mat::<2>::new(0.7, 0.2, 0.2, 0.4);
-        let w = Mat::<2>::new(0.01, 0.003, 0.003, 0.02);
-        let (post, k) = joseph_step(&p, &w);
-        let kk = p * (p + w).try_inverse().unwrap();
-        let a = Mat::<2>::identity() - kk;
-        let want = a * p * a.transpose() + kk * w * kk.transpose();
-        assert!((post - want).amax() < 1e-15 && (k - kk).amax() < 1e-15);
-        assert_eq!(post[(0, 1)].to_bits(), post[(1, 0)].to_bits());
+    fn breakdown(&self) -> Option<&Breakdown> {
+        self.breakdown.as_ref()
     }
 }

@@ -20,15 +20,97 @@
 //! - The first two steps have no pair of estimates yet: at k = 1 every input `u_0 = 0` is known
 //!   (Algorithm 9 line 8); at k = 2 the prediction is the prior mean 0 with covariance `R_u(0)`.
 //!
-//! Everything that sets the gain (Σ's, Σ_ũ, W) is data-independent, so the gain is shared by all
-//! runs as in the RKF; only `ũ` and `û` are per run.
+//! Everything that sets the gain (Σ's, Σ_ũ, W) is data-independent, so without measurement
+//! faults the gain is shared by all runs as in the RKF; only `ũ` and `û` are per run. With
+//! faults every (edge, run) has its own covariances and Wiener weight.
 //!
 //! # References
 //! van der Marel, MSc thesis 2021, §6.2 and §6.3, Algorithm 9.
 
-use super::ar::ArModel;
-use super::rkf::{edge_update, EdgeCov, Mat};
-use super::{to_static, EdgeModel, Estimator, StepInput};
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::batch::{EdgeBank, EdgeCov, Mat};
+use super::{
+    parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model,
+    Options, Step,
+};
+use crate::by_dim;
+use crate::linalg::batch_gemv_acc;
+
+/// `kind = "rkf-commless"`.
+#[derive(Debug, Clone, Copy)]
+pub struct Kind;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoOptions {}
+
+impl EstimatorKind for Kind {
+    fn name(&self) -> &'static str {
+        "rkf-commless"
+    }
+    fn about(&self) -> &'static str {
+        "RKF without communication: Wiener prediction of inputs from edge estimates (thesis Alg. 9)"
+    }
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        parse_options::<NoOptions>(o)?;
+        match &m.ar {
+            None => Err(
+                "rkf-commless needs an AR(1) model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
+                    .into(),
+            ),
+            Some(ar) if ar.order() != 1 => Err(format!(
+                "rkf-commless uses an AR(1) model; `[comm.ar]` has order {}",
+                ar.order()
+            )),
+            Some(_) => Ok(Arc::new(Config)),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Config;
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        Options::new()
+    }
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        by_dim!(m.dim, D => Box::new(RkfCommless::<D>::new(m, samples, runs)))
+    }
+    fn cost(&self, m: &Model) -> Cost {
+        let me = m.num_edges() as f64;
+        let d = m.dim as f64;
+        let shared = self.shared_gain(m);
+        Cost {
+            bytes_per_run: me * d * 8.0 * if shared { 3.0 } else { 8.0 },
+            bytes_shared: me * d * d * 8.0 * 6.0,
+            flops_per_run_step: me * (4.0 * d * d + 6.0 * d) * if shared { 1.0 } else { 12.0 },
+            flops_shared_step: if shared { me * 120.0 * d * d } else { 0.0 },
+        }
+    }
+}
+
+/// The covariance state: shared by all runs, or per (edge, run).
+#[derive(Debug, Clone)]
+enum Covs<const D: usize> {
+    Shared {
+        covs: Vec<EdgeCov<D>>,
+        /// `Σ_{k−2|k−2}` per edge.
+        sigma_prev: Vec<Mat<D>>,
+        /// `W` per edge, row-major.
+        wiener: Vec<f64>,
+        gains: Vec<f64>,
+        x: Vec<f64>,
+    },
+    PerRun {
+        bank: EdgeBank<D>,
+        /// `Σ_{k−2|k−2}` per (edge, run).
+        sigma_prev: Vec<Mat<D>>,
+    },
+}
 
 /// The communication-less RKF.
 #[derive(Debug, Clone)]
@@ -42,14 +124,7 @@ pub struct RkfCommless<const D: usize> {
     sn: Mat<D>,
     q: Vec<Mat<D>>,
     w: Vec<Mat<D>>,
-    sigma0: Vec<Mat<D>>,
-    covs: Vec<EdgeCov<D>>,
-    /// `Σ_{k−2|k−2}` per edge.
-    sigma_prev: Vec<Mat<D>>,
-    /// `W` per edge, row-major.
-    wiener: Vec<f64>,
-    gains: Vec<f64>,
-    x: Vec<f64>,
+    covs: Covs<D>,
     /// `ẑ_{k−2|k−2}` (after the step: the previous estimate).
     x_prev: Vec<f64>,
     /// `u_{k−2}` of every agent.
@@ -58,110 +133,145 @@ pub struct RkfCommless<const D: usize> {
     innov: Vec<f64>,
     utilde: Vec<f64>,
     k: usize,
+    breakdown: Option<Breakdown>,
 }
 
 impl<const D: usize> RkfCommless<D> {
-    /// For `runs` runs with the AR(1) model `ar`.
+    /// For `runs` runs with the AR(1) model of `m`.
     ///
     /// # Panics
-    /// If `ar` is not of order 1 (the scenario check requires it).
-    pub fn new(m: &EdgeModel, runs: usize, ar: &ArModel, dt: f64) -> Self {
-        assert_eq!(
-            ar.order(),
-            1,
-            "the communication-less predictor uses an AR(1) model"
-        );
+    /// Without an AR(1) model in `m` (the kind checks it).
+    pub fn new(m: &Model, samples: usize, runs: usize) -> Self {
+        let ar = m.ar.as_ref().expect("configured with an AR model");
+        assert_eq!(ar.order(), 1, "the communication-less predictor uses AR(1)");
         let ne = m.num_edges();
         let acov = ar.autocovariance(D, 1);
         let diag =
             |f: &dyn Fn(usize) -> f64| Mat::<D>::from_fn(|i, j| if i == j { f(i) } else { 0.0 });
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
-        let mut f = Self {
+        let covs = if m.measurement_faults {
+            Covs::PerRun {
+                bank: EdgeBank::new(&sigma0, runs),
+                sigma_prev: sigma0
+                    .iter()
+                    .flat_map(|s| std::iter::repeat_n(*s, runs))
+                    .collect(),
+            }
+        } else {
+            Covs::Shared {
+                covs: sigma0.iter().map(|s| EdgeCov::new(*s)).collect(),
+                sigma_prev: sigma0.clone(),
+                wiener: vec![0.0; ne * D * D],
+                gains: vec![0.0; ne * D * D],
+                x: vec![0.0; ne * D * runs],
+            }
+        };
+        Self {
             runs,
-            dt,
+            dt: m.dt,
             edges: m.edges.clone(),
             a: diag(&|d| ar.coeffs[0][d]),
             r0: diag(&|d| acov[d][0]),
             r1: diag(&|d| acov[d][1]),
             sn: diag(&|d| ar.noise_var[d]),
             q: (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect(),
-            w: m.w.iter().map(to_static::<D>).collect(),
-            covs: sigma0.iter().map(|s| EdgeCov::new(*s)).collect(),
-            sigma_prev: sigma0.clone(),
-            sigma0,
-            wiener: vec![0.0; ne * D * D],
-            gains: vec![0.0; ne * D * D],
-            x: vec![0.0; ne * D * runs],
+            w: m.mean_cov(samples).iter().map(to_static::<D>).collect(),
+            covs,
             x_prev: vec![0.0; ne * D * runs],
             u_prev2: vec![0.0; m.agents * D * runs],
             du: vec![0.0; D * runs],
             innov: vec![0.0; D * runs],
             utilde: vec![0.0; D * runs],
             k: 0,
-        };
-        f.reset();
-        f
-    }
-}
-
-impl<const D: usize> Estimator for RkfCommless<D> {
-    fn reset(&mut self) {
-        for (c, s) in self.covs.iter_mut().zip(&self.sigma0) {
-            *c = EdgeCov::new(*s);
+            breakdown: None,
         }
-        self.sigma_prev.clone_from(&self.sigma0);
-        self.x.fill(0.0);
-        self.x_prev.fill(0.0);
-        self.u_prev2.fill(0.0);
-        self.k = 0;
     }
 
-    fn step(&mut self, input: &StepInput<'_>) {
-        self.k += 1;
+    /// The inflation `Δt² Σ_u` and the Wiener weight `W` for the previous two posteriors.
+    fn predictor(&self, q: &Mat<D>, s1: &Mat<D>, s2: &Mat<D>) -> (Option<Mat<D>>, Mat<D>) {
+        let dt = self.dt;
+        match self.k {
+            1 => (None, Mat::<D>::zeros()),
+            2 => (Some(self.r0 * (dt * dt)), Mat::<D>::zeros()),
+            _ => {
+                let s_obs = (q + s1 + s2) / (dt * dt);
+                // R_u(0) ≻ 0 for a stationary model with σ²_n > 0 and Σ_ũ ⪰ 0.
+                let inv = (self.r0 + s_obs)
+                    .try_inverse()
+                    .unwrap_or_else(Mat::<D>::zeros);
+                let wm = self.r1 * inv;
+                let am = self.a - wm;
+                let su = am * self.r0 * am.transpose() + self.sn + wm * s_obs * wm.transpose();
+                (Some(0.5 * (su + su.transpose()) * (dt * dt)), wm)
+            }
+        }
+    }
+
+    fn step_shared(&mut self, s: &Step<'_>) {
         let (r, dt) = (self.runs, self.dt);
         let block = D * r;
-        for e in 0..self.covs.len() {
-            // Covariance of the predicted input and the Wiener weight (shared by all runs).
-            let (extra, wiener) = match self.k {
-                1 => (None, Mat::<D>::zeros()),
-                2 => (Some(self.r0 * (dt * dt)), Mat::<D>::zeros()),
-                _ => {
-                    let s_obs = (self.q[e] + self.covs[e].sigma + self.sigma_prev[e]) / (dt * dt);
-                    let wm = self.r1
-                        * (self.r0 + s_obs)
-                            .try_inverse()
-                            .expect("R_u(0) + Σ_ũ is positive definite");
-                    let am = self.a - wm;
-                    let su = am * self.r0 * am.transpose() + self.sn + wm * s_obs * wm.transpose();
-                    (Some(0.5 * (su + su.transpose()) * (dt * dt)), wm)
-                }
+        let ne = self.edges.len();
+        for e in 0..ne {
+            let (cur, prev) = match &self.covs {
+                Covs::Shared {
+                    covs, sigma_prev, ..
+                } => (covs[e].sigma, sigma_prev[e]),
+                Covs::PerRun { .. } => unreachable!("shared path"),
             };
-            self.sigma_prev[e] = self.covs[e].sigma;
-            self.covs[e].step(&self.q[e], &self.w[e], extra.as_ref());
+            let (extra, wiener) = self.predictor(&self.q[e], &cur, &prev);
+            let Covs::Shared {
+                covs,
+                sigma_prev,
+                wiener: wv,
+                gains,
+                ..
+            } = &mut self.covs
+            else {
+                unreachable!("shared path")
+            };
+            sigma_prev[e] = covs[e].sigma;
+            if covs[e]
+                .step(&self.q[e], &self.w[e], extra.as_ref(), true)
+                .is_err()
+            {
+                let (i, j) = self.edges[e];
+                self.breakdown = Some(Breakdown {
+                    what: format!(
+                        "the innovation covariance of edge ({i}, {j}) is not positive definite"
+                    ),
+                });
+                return;
+            }
             for a in 0..D {
                 for b in 0..D {
-                    self.gains[e * D * D + a * D + b] = self.covs[e].gain[(a, b)];
-                    self.wiener[e * D * D + a * D + b] = wiener[(a, b)];
+                    gains[e * D * D + a * D + b] = covs[e].gain[(a, b)];
+                    wv[e * D * D + a * D + b] = wiener[(a, b)];
                 }
             }
         }
+        let Covs::Shared {
+            wiener, gains, x, ..
+        } = &mut self.covs
+        else {
+            unreachable!("shared path")
+        };
         for (e, &(i, _)) in self.edges.iter().enumerate() {
             let span = e * block..(e + 1) * block;
-            let ui1 = &input.u_prev[i * block..(i + 1) * block];
+            let ui1 = &s.u_prev[i * block..(i + 1) * block];
             let ui2 = &self.u_prev2[i * block..(i + 1) * block];
             // ũ^j_{k−2} = (ẑ_{k−2|k−2} − ẑ_{k−1|k−1}) / Δt + u^i_{k−2}; then û^j_{k−1} = W ũ.
             for (((ut, xp), xc), u2) in self
                 .utilde
                 .iter_mut()
                 .zip(&self.x_prev[span.clone()])
-                .zip(&self.x[span.clone()])
+                .zip(&x[span.clone()])
                 .zip(ui2)
             {
                 *ut = (xp - xc) / dt + u2;
             }
             self.du.fill(0.0);
-            crate::linalg::batch_gemv_acc(
-                &self.wiener[e * D * D..(e + 1) * D * D],
+            batch_gemv_acc(
+                &wiener[e * D * D..(e + 1) * D * D],
                 D,
                 &self.utilde,
                 &mut self.du,
@@ -170,25 +280,105 @@ impl<const D: usize> Estimator for RkfCommless<D> {
             for (d, u1) in self.du.iter_mut().zip(ui1) {
                 *d = dt * (u1 - *d);
             }
-            self.x_prev[span.clone()].copy_from_slice(&self.x[span.clone()]);
-            let k = &self.gains[e * D * D..(e + 1) * D * D];
-            edge_update::<D>(
-                k,
-                &mut self.x[span.clone()],
-                &self.du,
-                &input.y[span],
-                &mut self.innov,
-                r,
-            );
+            self.x_prev[span.clone()].copy_from_slice(&x[span.clone()]);
+            let xe = &mut x[span.clone()];
+            for ((xv, dv), (yv, v)) in xe
+                .iter_mut()
+                .zip(&self.du)
+                .zip(s.y[span].iter().zip(self.innov.iter_mut()))
+            {
+                *xv += dv;
+                *v = yv - *xv;
+            }
+            batch_gemv_acc(&gains[e * D * D..(e + 1) * D * D], D, &self.innov, xe, r);
         }
-        self.u_prev2.copy_from_slice(input.u_prev);
+    }
+
+    fn step_per_run(&mut self, s: &Step<'_>) {
+        let (runs, dt) = (self.runs, self.dt);
+        for e in 0..self.edges.len() {
+            let i = self.edges[e].0;
+            for r in 0..runs {
+                let (cur, prev) = match &self.covs {
+                    Covs::PerRun { bank, sigma_prev } => {
+                        (bank.sigma(e, r), sigma_prev[e * runs + r])
+                    }
+                    Covs::Shared { .. } => unreachable!("per-run path"),
+                };
+                let (extra, wiener) = self.predictor(&self.q[e], &cur, &prev);
+                let Covs::PerRun { bank, sigma_prev } = &mut self.covs else {
+                    unreachable!("per-run path")
+                };
+                sigma_prev[e * runs + r] = cur;
+                let observed = s.faults.observed(e, r);
+                if bank
+                    .covariance_step(e, r, &self.q[e], &self.w[e], extra.as_ref(), observed)
+                    .is_err()
+                {
+                    let (i, j) = self.edges[e];
+                    self.breakdown = Some(Breakdown {
+                        what: format!(
+                            "the innovation covariance of edge ({i}, {j}) is not positive definite"
+                        ),
+                    });
+                    return;
+                }
+                let inc: [f64; D] = std::array::from_fn(|a| {
+                    let ut: [f64; D] = std::array::from_fn(|b| {
+                        let rb = (e * D + b) * runs + r;
+                        (self.x_prev[rb] - bank.x[rb]) / dt + self.u_prev2[(i * D + b) * runs + r]
+                    });
+                    let mut uhat = 0.0;
+                    for (b, v) in ut.iter().enumerate() {
+                        uhat += wiener[(a, b)] * v;
+                    }
+                    dt * (s.u_prev[(i * D + a) * runs + r] - uhat)
+                });
+                for a in 0..D {
+                    let row = (e * D + a) * runs + r;
+                    self.x_prev[row] = bank.x[row];
+                }
+                bank.mean_step(e, r, &inc, s.y);
+            }
+        }
+    }
+}
+
+impl<const D: usize> Estimator for RkfCommless<D> {
+    fn step(&mut self, s: &Step<'_>) {
+        if self.breakdown.is_some() {
+            return;
+        }
+        self.k += 1;
+        match self.covs {
+            Covs::Shared { .. } => self.step_shared(s),
+            Covs::PerRun { .. } => self.step_per_run(s),
+        }
+        self.u_prev2.copy_from_slice(s.u_prev);
     }
 
     fn estimates(&self) -> &[f64] {
-        &self.x
+        match &self.covs {
+            Covs::Shared { x, .. } => x,
+            Covs::PerRun { bank, .. } => &bank.x,
+        }
     }
 
-    fn cov_trace(&self) -> f64 {
-        self.covs.iter().map(|c| c.sigma.trace()).sum()
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        match &self.covs {
+            Covs::Shared { covs, .. } => out.fill(covs.iter().map(|c| c.sigma.trace()).sum()),
+            Covs::PerRun { bank, .. } => {
+                for (r, o) in out.iter_mut().enumerate() {
+                    *o = (0..self.edges.len())
+                        .filter(|&e| s.faults.tracked(e, r))
+                        .map(|e| bank.trace(e, r))
+                        .sum();
+                }
+            }
+        }
+    }
+
+    fn breakdown(&self) -> Option<&Breakdown> {
+        self.breakdown.as_ref()
     }
 }

@@ -1,12 +1,36 @@
 //! Shared helpers for the integration tests: reduced-size scenarios on the thesis hexagon.
 #![allow(dead_code)]
 
-use edgekf::scenario::{
-    ControlSpec, EstimatorEntry, EstimatorTable, FrameworkSpec, InitSpec, NoiseSpec, Scenario,
-    ScenarioSpec, SimSpec,
-};
+use edgekf::estimate::ArModel;
+use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
+use edgekf::sim::Results;
 
-/// A hexagon scenario with the given noise, size and estimators (names or tables).
+/// A hexagon scenario spec with the given noise, size and estimators (seed 7).
+pub fn spec(
+    sigma_w: f64,
+    sigma_v: f64,
+    steps: usize,
+    runs: usize,
+    every: usize,
+    estimators: Vec<EstimatorEntry>,
+) -> ScenarioSpec {
+    let mut s = ScenarioSpec::minimal("test", &[]);
+    s.estimators = estimators;
+    s.sim.steps = steps;
+    s.sim.runs = runs;
+    s.sim.every = every;
+    s.sim.seed = 7;
+    s.noise.sigma_w = sigma_w;
+    s.noise.sigma_v = sigma_v;
+    s
+}
+
+/// A checked scenario from a spec.
+pub fn build(spec: &ScenarioSpec) -> Scenario {
+    Scenario::from_spec(spec, None).expect("valid test scenario")
+}
+
+/// A hexagon scenario with the given noise, size and estimators.
 pub fn hexagon(
     sigma_w: f64,
     sigma_v: f64,
@@ -15,39 +39,17 @@ pub fn hexagon(
     every: usize,
     estimators: Vec<EstimatorEntry>,
 ) -> Scenario {
-    let spec = ScenarioSpec {
-        name: "test".into(),
-        description: String::new(),
-        framework: FrameworkSpec {
-            preset: Some("hexagon".into()),
-            ..Default::default()
-        },
-        sim: SimSpec {
-            steps,
-            runs,
-            every,
-            seed: 7,
-            ..Default::default()
-        },
-        init: InitSpec::default(),
-        noise: NoiseSpec {
-            sigma_w,
-            sigma_v,
-            ..Default::default()
-        },
-        control: ControlSpec::default(),
-        comm: Default::default(),
-        estimators,
-        plots: vec![],
-    };
-    Scenario::from_spec(&spec, None).expect("valid test scenario")
+    build(&spec(sigma_w, sigma_v, steps, runs, every, estimators))
+}
+
+/// Runs a scenario on the current rayon pool.
+pub fn run(sc: &Scenario) -> Results {
+    edgekf::sim::run(sc, &edgekf::sim::Quiet).expect("not cancelled")
 }
 
 /// Estimator entries from names.
 pub fn names(list: &[&str]) -> Vec<EstimatorEntry> {
-    list.iter()
-        .map(|s| EstimatorEntry::Name((*s).to_string()))
-        .collect()
+    list.iter().map(|s| EstimatorEntry::kind(s)).collect()
 }
 
 /// An estimator entry with options.
@@ -57,16 +59,33 @@ pub fn table(
     samples: Option<usize>,
     prior_var: Option<f64>,
 ) -> EstimatorEntry {
-    EstimatorEntry::Table(EstimatorTable {
-        kind: kind.into(),
-        label: Some(label.into()),
-        samples,
-        prior_var,
-        p_fail: None,
-    })
+    let mut e = EstimatorEntry::kind(kind).with("label", label);
+    if let Some(t) = samples {
+        e = e.with("samples", t);
+    }
+    if let Some(v) = prior_var {
+        e = e.with("prior_var", v);
+    }
+    e
+}
+
+/// The AR(1) model shipped with the chapter 6 scenarios (fitted with `edgekf fit-ar`).
+pub fn ar() -> ArModel {
+    ArModel {
+        coeffs: vec![vec![0.975, 0.979]],
+        noise_var: vec![0.0115, 0.0119],
+    }
 }
 
 /// Mean of `v[from..]`.
 pub fn tail_mean(v: &[f64], from: usize) -> f64 {
     v[from..].iter().sum::<f64>() / (v.len() - from) as f64
+}
+
+/// Index of the first reported step at or after time `t`.
+pub fn at(res: &Results, t: f64) -> usize {
+    res.steps
+        .iter()
+        .position(|&k| k as f64 * res.dt >= t)
+        .expect("a reported step at that time")
 }

@@ -1,0 +1,912 @@
+//! Scenarios: what a scenario file holds ([`ScenarioSpec`], TOML-friendly), the fully resolved
+//! form other tools read ([`Resolved`], schema `edgekf.scenario/1`), and the sealed, checked
+//! runtime type the engine uses ([`Scenario`]).
+//!
+//! Both inputs are validated once, at this boundary; errors name the key and what is wrong. A
+//! [`Scenario`] cannot be changed except through `with_*` methods that check again, so the
+//! engine relies on its invariants without re-validating.
+
+mod check;
+mod resolved;
+mod spec;
+
+use std::sync::Arc;
+
+use nalgebra::DMatrix;
+
+pub use resolved::{Resolved, SCHEMA};
+pub use spec::{
+    CommSpec, ControlSpec, DepartureSpec, EstimatorEntry, FaultSpec, FeedbackSpec, FrameworkSpec,
+    InitSpec, KeyframesSpec, LawSpec, LeaderSpec, ManeuverSpec, MetricsSpec, NoiseSpec, PlotSpec,
+    RandomDepartureSpec, ScenarioSpec, SimSpec,
+};
+
+use crate::control::maneuver::{garkf_fig7b, Hold, Maneuver, Trajectory};
+use crate::control::{FollowerLaw, LeaderMode};
+use crate::estimate::{Configured, Model, Registry};
+use crate::framework::Framework;
+use crate::noise::{agent_covariance, meas_covariance, normalise_config};
+use check::{check_cov, err, matrix, rows, Keys};
+
+/// A validation error: the key (dotted path in the scenario file) and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("key `{key}`: {message}")]
+pub struct ScenarioError {
+    /// Dotted key path, e.g. `noise.sigma_v`.
+    pub key: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// One estimator of a scenario: its label, kind, measurements per step and checked options.
+#[derive(Debug, Clone)]
+pub struct EstimatorDef {
+    label: String,
+    kind: &'static str,
+    samples: usize,
+    config: Arc<dyn Configured>,
+}
+
+impl EstimatorDef {
+    /// Label in outputs.
+    pub fn label(&self) -> &str {
+        &self.label
+    }
+    /// Kind name.
+    pub fn kind(&self) -> &'static str {
+        self.kind
+    }
+    /// Measurements per step T.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+    /// The configured estimator.
+    pub fn config(&self) -> &dyn Configured {
+        self.config.as_ref()
+    }
+    /// The entry as written to the resolved scenario.
+    pub fn entry(&self) -> serde_json::Map<String, serde_json::Value> {
+        let mut m = serde_json::Map::new();
+        m.insert("kind".into(), self.kind.into());
+        m.insert("label".into(), self.label.clone().into());
+        m.insert("samples".into(), self.samples.into());
+        m.extend(self.config.options());
+        m
+    }
+}
+
+/// What the followers' controllers act on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Feedback {
+    /// Each estimator's own estimates.
+    Estimates,
+    /// The true edges.
+    Truth,
+}
+
+/// A lost-and-returning agent, in steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Departure {
+    /// The agent.
+    pub agent: usize,
+    /// First step it is absent.
+    pub from: usize,
+    /// First step it is back (`usize::MAX`: never).
+    pub until: usize,
+}
+
+/// The faults of a checked scenario, in steps and directed-edge indices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaultPlan {
+    /// Availability λ of every directed edge.
+    pub availability: f64,
+    /// Directed edges never available (incidence indices), sorted.
+    pub lost: Vec<usize>,
+    /// Scheduled departures.
+    pub departures: Vec<Departure>,
+    /// A random number of followers leaving at a step: `(count, step)`.
+    pub random_departures: Option<(usize, usize)>,
+}
+
+impl FaultPlan {
+    /// Whether measurements can go missing.
+    pub fn any(&self) -> bool {
+        self.availability < 1.0
+            || !self.lost.is_empty()
+            || !self.departures.is_empty()
+            || self.random_departures.is_some_and(|(n, _)| n > 0)
+    }
+}
+
+/// A checked scenario: everything the engine needs, validated.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    name: String,
+    description: String,
+    model: Model,
+    init_mean: Vec<f64>,
+    steps: usize,
+    runs: usize,
+    seed: u64,
+    samples: usize,
+    every: usize,
+    paths_run: usize,
+    allow_divergence: bool,
+    estimators: Vec<EstimatorDef>,
+    control: ControlSpec,
+    law: FollowerLaw,
+    leaders: Option<LeaderMode>,
+    feedback: Feedback,
+    comm: CommSpec,
+    fault_spec: FaultSpec,
+    faults: FaultPlan,
+    maneuver: Option<(ManeuverSpec, Arc<dyn Trajectory>)>,
+    metrics: MetricsSpec,
+    metric_edge: Option<usize>,
+    plots: Vec<PlotSpec>,
+}
+
+/// Everything parsed from either input, before the checks shared by both.
+struct Draft<'a> {
+    keys: Keys,
+    name: String,
+    description: String,
+    framework: Framework,
+    dt: f64,
+    steps: usize,
+    runs: usize,
+    seed: u64,
+    samples: usize,
+    every: usize,
+    paths_run: usize,
+    allow_divergence: bool,
+    init_mean: Vec<f64>,
+    init_cov: DMatrix<f64>,
+    q: DMatrix<f64>,
+    r: Vec<DMatrix<f64>>,
+    control: ControlSpec,
+    comm: CommSpec,
+    faults: FaultSpec,
+    maneuver: Option<ManeuverSpec>,
+    metrics: MetricsSpec,
+    estimators: Vec<serde_json::Map<String, serde_json::Value>>,
+    /// The key of the estimator list in this input.
+    estimators_key: &'static str,
+    plots: Vec<PlotSpec>,
+    registry: &'a Registry,
+}
+
+impl Scenario {
+    /// Checks a scenario file with the built-in estimators. `framework_file` supplies the content
+    /// of `framework.file` when the spec names one (the caller reads it; the library does no I/O).
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the key and the problem.
+    pub fn from_spec(
+        spec: &ScenarioSpec,
+        framework_file: Option<&FrameworkSpec>,
+    ) -> Result<Self, ScenarioError> {
+        Self::from_spec_in(spec, framework_file, Registry::builtin())
+    }
+
+    /// [`Scenario::from_spec`] with the estimator kinds of `registry`.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the key and the problem.
+    pub fn from_spec_in(
+        spec: &ScenarioSpec,
+        framework_file: Option<&FrameworkSpec>,
+        registry: &Registry,
+    ) -> Result<Self, ScenarioError> {
+        let keys = Keys::Toml;
+        let fw = check::build_framework(&spec.framework, framework_file)?;
+        let dim = fw.dim();
+        let n = fw.agents();
+        let s = &spec.sim;
+        let init_mean = match &spec.init.mean {
+            Some(m) if m.len() != dim => {
+                return Err(err("init.mean", format!("must have dim = {dim} entries")))
+            }
+            Some(m) if m.iter().any(|v| !v.is_finite()) => {
+                return Err(err("init.mean", "has a non-finite entry"))
+            }
+            Some(m) => m.clone(),
+            None => vec![0.0; dim],
+        };
+        let init_cov = match &spec.init.cov {
+            Some(c) => matrix("init.cov", c, dim)?,
+            None => DMatrix::identity(dim, dim),
+        };
+        let nz = &spec.noise;
+        for (key, v) in [("noise.sigma_w", nz.sigma_w), ("noise.sigma_v", nz.sigma_v)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(err(key, format!("must be a finite number ≥ 0, got {v}")));
+            }
+        }
+        if !(nz.meas_corr.is_finite() && nz.meas_corr.abs() < 1.0) {
+            return Err(err(
+                "noise.meas_corr",
+                format!("must lie in (−1, 1), got {}", nz.meas_corr),
+            ));
+        }
+        if let Some(l) = nz.kernel.length() {
+            if !(l.is_finite() && l > 0.0) {
+                return Err(err("noise.kernel.length", format!("must be > 0, got {l}")));
+            }
+        }
+        let q = match &nz.process_cov {
+            Some(q) => matrix("noise.process_cov", q, n * dim)?,
+            None => {
+                let pts = if nz.normalise {
+                    normalise_config(fw.config(), dim)
+                } else {
+                    fw.config().to_vec()
+                };
+                let qa = agent_covariance(&nz.kernel, &pts, dim);
+                qa.kronecker(&DMatrix::identity(dim, dim)) * (nz.sigma_w * nz.sigma_w)
+            }
+        };
+        let r = match &nz.meas_cov {
+            Some(r) => matrix("noise.meas_cov", r, dim)?,
+            None => meas_covariance(nz.sigma_v, nz.meas_corr, dim),
+        };
+        check_cov(keys.key("meas_cov"), &r)?;
+        let r = vec![r; fw.graph().num_edges()];
+        Self::finish(Draft {
+            keys,
+            name: spec.name.clone(),
+            description: spec.description.clone(),
+            framework: fw,
+            dt: s.dt,
+            steps: s.steps,
+            runs: s.runs,
+            seed: s.seed,
+            samples: s.samples_per_step,
+            every: s.every,
+            paths_run: s.paths_run,
+            allow_divergence: s.allow_divergence,
+            init_mean,
+            init_cov,
+            q,
+            r,
+            control: spec.control.clone(),
+            comm: spec.comm.clone(),
+            faults: spec.faults.clone(),
+            maneuver: spec.maneuver.clone(),
+            metrics: spec.metrics.clone(),
+            estimators: spec.estimators.iter().map(|e| e.0.clone()).collect(),
+            estimators_key: "estimators",
+            plots: spec.plots.clone(),
+            registry,
+        })
+    }
+
+    /// Checks a resolved scenario (`scenario.json`) with the built-in estimators.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the key and the problem.
+    pub fn from_resolved(r: &Resolved) -> Result<Self, ScenarioError> {
+        Self::from_resolved_in(r, Registry::builtin())
+    }
+
+    /// [`Scenario::from_resolved`] with the estimator kinds of `registry`.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the key and the problem.
+    pub fn from_resolved_in(r: &Resolved, registry: &Registry) -> Result<Self, ScenarioError> {
+        let keys = Keys::Resolved;
+        if r.schema != SCHEMA {
+            return Err(err(
+                "schema",
+                format!("expected `{SCHEMA}`, got `{}`", r.schema),
+            ));
+        }
+        let fw = check::framework_from_resolved(r)?;
+        let dim = fw.dim();
+        if r.init_mean.len() != dim || r.init_mean.iter().any(|v| !v.is_finite()) {
+            return Err(err(
+                "init_mean",
+                format!("must have dim = {dim} finite entries"),
+            ));
+        }
+        let init_cov = matrix("init_cov", &r.init_cov, dim)?;
+        let q = matrix("process_cov", &r.process_cov, r.agents * dim)?;
+        if r.meas_cov.len() != r.edges.len() {
+            return Err(err(
+                "meas_cov",
+                format!("needs one matrix per directed edge ({})", r.edges.len()),
+            ));
+        }
+        let mut meas = Vec::with_capacity(r.edges.len());
+        for (e, m) in r.meas_cov.iter().enumerate() {
+            let key = format!("meas_cov[{e}]");
+            let m = matrix(&key, m, dim)?;
+            check_cov(&key, &m)?;
+            meas.push(m);
+        }
+        let estimators = match &r.estimator_specs {
+            Some(t) => {
+                if t.len() != r.estimators.len() {
+                    return Err(err(
+                        "estimator_specs",
+                        "needs one entry per label in `estimators`",
+                    ));
+                }
+                for (k, (spec, label)) in t.iter().zip(&r.estimators).enumerate() {
+                    if spec.get("label").and_then(|l| l.as_str()) != Some(label.as_str()) {
+                        return Err(err(
+                            &format!("estimator_specs[{k}].label"),
+                            format!("must equal `estimators[{k}]` = `{label}`"),
+                        ));
+                    }
+                }
+                t.clone()
+            }
+            None => r
+                .estimators
+                .iter()
+                .map(|s| EstimatorEntry::kind(s).0)
+                .collect(),
+        };
+        let mut control = r.control.clone().unwrap_or_default();
+        if r.control.is_none() {
+            control.follower_gain = r.follower_gain.unwrap_or(1.0);
+            control.leader_gain = r.leader_gain.unwrap_or(1.0);
+        }
+        Self::finish(Draft {
+            keys,
+            name: r.name.clone(),
+            description: r.description.clone(),
+            framework: fw,
+            dt: r.dt,
+            steps: r.steps,
+            runs: r.runs,
+            seed: r.seed,
+            samples: r.samples_per_step,
+            every: r.every.unwrap_or(10),
+            paths_run: r.paths_run.unwrap_or(0),
+            allow_divergence: r.allow_divergence.unwrap_or(false),
+            init_mean: r.init_mean.clone(),
+            init_cov,
+            q,
+            r: meas,
+            control,
+            comm: r.comm.clone().unwrap_or_default(),
+            faults: r.faults.clone().unwrap_or_default(),
+            maneuver: r.maneuver.clone(),
+            metrics: r.metrics.clone().unwrap_or_default(),
+            estimators_key: if r.estimator_specs.is_some() {
+                "estimator_specs"
+            } else {
+                "estimators"
+            },
+            estimators,
+            plots: r.plots.clone(),
+            registry,
+        })
+    }
+
+    /// The checks both inputs share, and the checked scenario.
+    fn finish(d: Draft<'_>) -> Result<Self, ScenarioError> {
+        let k = d.keys;
+        let fw = d.framework;
+        let dim = fw.dim();
+        let n = fw.agents();
+        check::sim(k, d.dt, d.steps, d.runs, d.samples, d.every, d.paths_run)?;
+        check_cov(k.key("init_cov"), &d.init_cov)?;
+        check_cov(k.key("process_cov"), &d.q)?;
+        check::representable(k, &d.init_mean, &d.init_cov, &d.q, &d.r, d.steps, d.dt)?;
+        // Communication.
+        if !(0.0..=1.0).contains(&d.comm.p_fail) {
+            return Err(err(
+                k.key("comm.p_fail"),
+                format!("must lie in [0, 1], got {}", d.comm.p_fail),
+            ));
+        }
+        if let Some(ar) = &d.comm.ar {
+            ar.check(dim).map_err(|m| err(k.key("comm.ar"), m))?;
+        }
+        // Control.
+        let c = &d.control;
+        for (key, v) in [
+            ("control.follower_gain", c.follower_gain),
+            ("control.leader_gain", c.leader_gain),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(err(k.key(key), format!("must be > 0, got {v}")));
+            }
+        }
+        let law = match c.law {
+            LawSpec::Static {} => FollowerLaw::Static {
+                gain: c.follower_gain,
+            },
+            LawSpec::Pi { alpha, eta } => {
+                let alpha = alpha.unwrap_or(c.follower_gain);
+                let eta = eta.unwrap_or(1e-3);
+                if !(alpha.is_finite() && alpha > 0.0 && eta.is_finite() && eta >= 0.0) {
+                    return Err(err(
+                        k.key("control.law"),
+                        format!("pi needs α > 0 and η ≥ 0, got α = {alpha}, η = {eta}"),
+                    ));
+                }
+                FollowerLaw::Pi { alpha, eta }
+            }
+            LawSpec::VaryingVelocity {} => {
+                let g = fw.graph();
+                let w = fw.edge_weights();
+                for i in (0..n).filter(|i| !fw.leaders().contains(i)) {
+                    let gamma: f64 = g.edges_of(i).map(|e| w[e]).sum();
+                    if gamma.abs() < 1e-9 {
+                        return Err(err(
+                            k.key("control.law"),
+                            format!(
+                                "varying-velocity divides by γ_i = Σ_j l_ij, which is {gamma:.3e} for agent {i}"
+                            ),
+                        ));
+                    }
+                }
+                FollowerLaw::VaryingVelocity
+            }
+        };
+        let leader_spec = c.leaders.unwrap_or(if d.maneuver.is_some() {
+            LeaderSpec::Target
+        } else {
+            LeaderSpec::Distance
+        });
+        let leaders = if fw.leaders().is_empty() {
+            None
+        } else {
+            Some(match leader_spec {
+                LeaderSpec::Distance => {
+                    fw.check_leader_clique()
+                        .map_err(|e| err(k.key("framework.leaders"), e.to_string()))?;
+                    LeaderMode::Distance {
+                        gain: c.leader_gain,
+                    }
+                }
+                LeaderSpec::Target => LeaderMode::Target,
+            })
+        };
+        let mut control = c.clone();
+        control.leaders = Some(leader_spec);
+        let feedback = match c.feedback {
+            FeedbackSpec::Estimates => Feedback::Estimates,
+            FeedbackSpec::Truth => Feedback::Truth,
+        };
+        // Maneuver.
+        let maneuver = match &d.maneuver {
+            None => None,
+            Some(m) => {
+                let frames = match &m.keyframes {
+                    KeyframesSpec::Preset(p) if p == "garkf-fig7b" => garkf_fig7b(),
+                    KeyframesSpec::Preset(p) if p == "hold" => Vec::new(),
+                    KeyframesSpec::Preset(p) => {
+                        return Err(err(
+                            k.key("maneuver.keyframes"),
+                            format!("unknown maneuver `{p}` (known: garkf-fig7b, hold)"),
+                        ))
+                    }
+                    KeyframesSpec::List(l) => l.clone(),
+                };
+                let traj: Arc<dyn Trajectory> = if frames.is_empty() {
+                    Arc::new(Hold)
+                } else {
+                    Arc::new(
+                        Maneuver::new(&frames, dim)
+                            .map_err(|m| err(k.key("maneuver.keyframes"), m))?,
+                    )
+                };
+                Some((m.clone(), traj))
+            }
+        };
+        if maneuver.is_some() && leader_spec == LeaderSpec::Distance {
+            return Err(err(
+                k.key("control.leaders"),
+                "a [maneuver] is tracked by target leaders: set `leaders = \"target\"` (or drop the maneuver)",
+            ));
+        }
+        if leader_spec == LeaderSpec::Target && !fw.leaders().is_empty() {
+            check::affinely_independent(&fw).map_err(|m| err(k.key("framework.leaders"), m))?;
+        }
+        // Faults.
+        let faults = check::faults(k, &d.faults, &fw, d.dt)?;
+        let model = Model {
+            dim,
+            agents: n,
+            edges: fw.graph().edges().to_vec(),
+            agent_edges: (0..n).map(|i| fw.graph().edges_of(i)).collect(),
+            q: d.q,
+            r: d.r,
+            p: d.init_cov,
+            dt: d.dt,
+            ar: d.comm.ar.clone(),
+            p_fail: d.comm.p_fail,
+            measurement_faults: faults.any(),
+            metric_edge: None,
+            framework: fw,
+        };
+        // Metrics.
+        let metric_edge = match d.metrics.edge {
+            None => None,
+            Some([i, j]) => Some(model.framework.graph().edge_index(i, j).ok_or_else(|| {
+                err(
+                    k.key("metrics.edge"),
+                    format!("({i}, {j}) is not a directed edge of the graph"),
+                )
+            })?),
+        };
+        let mut model = model;
+        model.metric_edge = metric_edge;
+        // Estimators.
+        let estimators = check::estimators(
+            d.estimators_key,
+            &d.estimators,
+            d.samples,
+            &model,
+            d.registry,
+        )?;
+        let sc = Self {
+            name: d.name,
+            description: d.description,
+            model,
+            init_mean: d.init_mean,
+            steps: d.steps,
+            runs: d.runs,
+            seed: d.seed,
+            samples: d.samples,
+            every: d.every,
+            paths_run: d.paths_run,
+            allow_divergence: d.allow_divergence,
+            estimators,
+            control,
+            law,
+            leaders,
+            feedback,
+            comm: d.comm,
+            fault_spec: d.faults,
+            faults,
+            maneuver,
+            metrics: d.metrics,
+            metric_edge,
+            plots: d.plots,
+        };
+        sc.check_plots(k)?;
+        sc.check_stability(k)?;
+        Ok(sc)
+    }
+
+    /// The resolved form: from it alone anyone can recompute the results.
+    pub fn to_resolved(&self) -> Resolved {
+        let fw = &self.model.framework;
+        let d = fw.dim();
+        Resolved {
+            schema: SCHEMA.to_string(),
+            name: self.name.clone(),
+            dim: d,
+            agents: fw.agents(),
+            config: (0..fw.agents()).map(|i| fw.point(i).to_vec()).collect(),
+            edges: fw.graph().edges().iter().map(|&(i, j)| [i, j]).collect(),
+            weights: fw.edge_weights(),
+            leaders: fw.leaders().to_vec(),
+            dt: self.model.dt,
+            steps: self.steps,
+            runs: self.runs,
+            seed: self.seed,
+            samples_per_step: self.samples,
+            init_mean: self.init_mean.clone(),
+            init_cov: rows(&self.model.p),
+            process_cov: rows(&self.model.q),
+            meas_cov: self.model.r.iter().map(rows).collect(),
+            estimators: self.estimators.iter().map(|e| e.label.clone()).collect(),
+            estimator_specs: Some(self.estimators.iter().map(EstimatorDef::entry).collect()),
+            description: self.description.clone(),
+            every: Some(self.every),
+            paths_run: Some(self.paths_run),
+            follower_gain: Some(self.control.follower_gain),
+            leader_gain: Some(self.control.leader_gain),
+            control: Some(self.control.clone()),
+            comm: (self.comm.p_fail > 0.0 || self.comm.ar.is_some()).then(|| self.comm.clone()),
+            faults: self.fault_spec.any().then(|| self.fault_spec.clone()),
+            maneuver: self.maneuver.as_ref().map(|(m, _)| m.clone()),
+            metrics: self.metrics.edge.is_some().then(|| self.metrics.clone()),
+            allow_divergence: self.allow_divergence.then_some(true),
+            plots: self.plots.clone(),
+        }
+    }
+
+    /// With `runs` Monte Carlo runs (the recorded run is clamped to the last).
+    ///
+    /// # Errors
+    /// [`ScenarioError`] (key `--runs`) for zero runs or a study too large.
+    pub fn with_runs(mut self, runs: usize) -> Result<Self, ScenarioError> {
+        self.runs = runs;
+        self.paths_run = self.paths_run.min(runs.saturating_sub(1));
+        self.recheck(Keys::Flags)?;
+        Ok(self)
+    }
+
+    /// With `steps` steps.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] (key `--steps`) for zero steps or a horizon that cannot be simulated.
+    pub fn with_steps(mut self, steps: usize) -> Result<Self, ScenarioError> {
+        self.steps = steps;
+        self.recheck(Keys::Flags)?;
+        Ok(self)
+    }
+
+    /// With seed `seed`.
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Reporting every `every` steps.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] (key `--every`) for zero.
+    pub fn with_every(mut self, every: usize) -> Result<Self, ScenarioError> {
+        self.every = every;
+        self.recheck(Keys::Flags)?;
+        Ok(self)
+    }
+
+    /// Allowing (or not) a run past the stability bound and divergence.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] when disallowing it leaves an unstable loop.
+    pub fn with_allow_divergence(mut self, allow: bool) -> Result<Self, ScenarioError> {
+        self.allow_divergence = allow;
+        self.check_stability(Keys::Flags)?;
+        Ok(self)
+    }
+
+    fn recheck(&self, k: Keys) -> Result<(), ScenarioError> {
+        check::sim(
+            k,
+            self.model.dt,
+            self.steps,
+            self.runs,
+            self.samples,
+            self.every,
+            self.paths_run,
+        )?;
+        check::representable(
+            k,
+            &self.init_mean,
+            &self.model.p,
+            &self.model.q,
+            &self.model.r,
+            self.steps,
+            self.model.dt,
+        )
+    }
+
+    /// Name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Description.
+    pub fn description(&self) -> &str {
+        &self.description
+    }
+    /// The model every estimator is built from (framework, noise, Δt, faults).
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+    /// The framework.
+    pub fn framework(&self) -> &Framework {
+        &self.model.framework
+    }
+    /// Δt.
+    pub fn dt(&self) -> f64 {
+        self.model.dt
+    }
+    /// Steps.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+    /// Monte Carlo runs.
+    pub fn runs(&self) -> usize {
+        self.runs
+    }
+    /// Seed.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+    /// Default measurements per step T.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+    /// Report interval.
+    pub fn every(&self) -> usize {
+        self.every
+    }
+    /// Recorded run.
+    pub fn paths_run(&self) -> usize {
+        self.paths_run
+    }
+    /// Whether divergence is allowed.
+    pub fn allow_divergence(&self) -> bool {
+        self.allow_divergence
+    }
+    /// μ of the initial positions.
+    pub fn init_mean(&self) -> &[f64] {
+        &self.init_mean
+    }
+    /// The estimators.
+    pub fn estimators(&self) -> &[EstimatorDef] {
+        &self.estimators
+    }
+    /// The followers' law.
+    pub fn law(&self) -> FollowerLaw {
+        self.law
+    }
+    /// The leaders' mode (none without leaders).
+    pub fn leader_mode(&self) -> Option<LeaderMode> {
+        self.leaders
+    }
+    /// What the controllers act on.
+    pub fn feedback(&self) -> Feedback {
+        self.feedback
+    }
+    /// The faults.
+    pub fn faults(&self) -> &FaultPlan {
+        &self.faults
+    }
+    /// The target trajectory, if any.
+    pub fn trajectory(&self) -> Option<&dyn Trajectory> {
+        self.maneuver.as_ref().map(|(_, t)| t.as_ref())
+    }
+    /// The directed edge of `edge_cov_trace`, if any.
+    pub fn metric_edge(&self) -> Option<usize> {
+        self.metric_edge
+    }
+    /// Figures.
+    pub fn plots(&self) -> &[PlotSpec] {
+        &self.plots
+    }
+
+    /// Number of reported steps: 1, every multiple of `every`, and the last step.
+    pub fn report_count(&self) -> usize {
+        check::report_count(self.steps, self.every)
+    }
+
+    /// The reported steps: 1, every multiple of `every`, and the last step.
+    pub fn report_steps(&self) -> Vec<usize> {
+        let mut v = Vec::with_capacity(self.report_count());
+        v.push(1);
+        v.extend(
+            (1..=self.steps / self.every)
+                .map(|m| m * self.every)
+                .filter(|&k| k > 1),
+        );
+        if v.last().copied() != Some(self.steps) {
+            v.push(self.steps);
+        }
+        v
+    }
+
+    /// `Δt · c · λ_max(L_ff)` of the static follower law (or its counterpart for the other laws):
+    /// the discrete closed loop is stable below 2.
+    pub fn step_bound(&self) -> f64 {
+        let fw = &self.model.framework;
+        let followers: Vec<usize> = (0..fw.agents())
+            .filter(|i| !fw.leaders().contains(i))
+            .collect();
+        let l = fw.laplacian();
+        let lff = DMatrix::from_fn(followers.len(), followers.len(), |a, b| {
+            l[(followers[a], followers[b])]
+        });
+        let lmax = lff.symmetric_eigenvalues().max();
+        let gain = match self.law {
+            FollowerLaw::Static { gain } => gain,
+            FollowerLaw::Pi { alpha, .. } => alpha,
+            FollowerLaw::VaryingVelocity => 0.0,
+        };
+        self.model.dt * gain * lmax
+    }
+
+    fn check_stability(&self, k: Keys) -> Result<(), ScenarioError> {
+        let b = self.step_bound();
+        if b >= 2.0 && !self.allow_divergence {
+            return Err(err(
+                k.key("sim.dt"),
+                format!(
+                    "Δt·c·λ_max(L_ff) = {b:.3} ≥ 2: the followers' discrete closed loop is unstable (Δt = {}, c = {}, λ_max = {:.4}); lower Δt below {:.3e} or set `allow_divergence = true` to show the divergence",
+                    self.model.dt,
+                    self.control.follower_gain,
+                    b / (self.model.dt * self.control.follower_gain),
+                    2.0 * self.model.dt / b
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_plots(&self, k: Keys) -> Result<(), ScenarioError> {
+        for (n, p) in self.plots.iter().enumerate() {
+            let key = format!("{}[{n}]", k.key("plots"));
+            if p.file().is_empty() || p.file().contains(['/', '\\']) || p.file().starts_with('.') {
+                return Err(err(&format!("{key}.file"), "must be a plain file stem"));
+            }
+            if self.plots[..n].iter().any(|q| q.file() == p.file()) {
+                return Err(err(
+                    &format!("{key}.file"),
+                    format!("`{}` is used by two plots", p.file()),
+                ));
+            }
+            match p {
+                PlotSpec::Metric { metric, .. } => {
+                    let known = self.metric_names();
+                    if !known.iter().any(|m| m == metric) {
+                        return Err(err(
+                            &format!("{key}.metric"),
+                            format!("unknown metric `{metric}`; this scenario reports {known:?}"),
+                        ));
+                    }
+                }
+                PlotSpec::Inputs { agent, .. } => {
+                    let n = self.model.agents;
+                    if *agent >= n {
+                        return Err(err(
+                            &format!("{key}.agent"),
+                            format!("must be an agent in 0..{n}"),
+                        ));
+                    }
+                }
+                PlotSpec::Paths { .. } => {}
+            }
+            if let Some(es) = p.estimators() {
+                for e in es {
+                    if !self.estimators.iter().any(|d| &d.label == e) {
+                        return Err(err(
+                            &format!("{key}.estimators"),
+                            format!("`{e}` is not an estimator label of this scenario"),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Every metric name some estimator of this scenario reports.
+    pub fn metric_names(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for e in &self.estimators {
+            for m in crate::sim::metrics::names_for(self, e) {
+                if !out.contains(&m) {
+                    out.push(m);
+                }
+            }
+        }
+        out
+    }
+
+    /// A hint at the likely cause of a divergence, naming keys.
+    pub fn divergence_hint(&self) -> String {
+        let b = self.step_bound();
+        let mut hints = Vec::new();
+        if b >= 1.5 {
+            hints.push(format!(
+                "the followers' step bound Δt·c·λ_max = {b:.3} is close to or past 2 (key `sim.dt`)"
+            ));
+        }
+        let qmax = self.model.q.diagonal().max();
+        if qmax * self.steps as f64 > 1e100 {
+            hints.push("the process noise is too large for f64 (key `noise.sigma_w`)".into());
+        }
+        if self.faults.any() {
+            hints.push(
+                "the faults leave the nominal stress without its equilibrium (keys under `[faults]`)"
+                    .into(),
+            );
+        }
+        if hints.is_empty() {
+            "no cause known from the scenario; check the estimator's model".into()
+        } else {
+            hints.join("; ")
+        }
+    }
+}

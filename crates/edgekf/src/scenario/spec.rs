@@ -1,0 +1,501 @@
+//! What a scenario file holds (TOML): plain serde structs with the papers' defaults, refusing
+//! unknown keys. Kinds with options (estimators, control laws, plots) are tagged: a bare name, or
+//! a table `{ kind = "…", … }` holding only that kind's own options.
+
+use serde::de::{DeserializeOwned, Deserializer};
+use serde::{Deserialize, Serialize};
+
+use crate::control::maneuver::KeyframeSpec;
+use crate::estimate::ArModel;
+use crate::noise::Kernel;
+
+/// Deserialises a value that is either a bare name or a table with a `kind` key, into the tagged
+/// type `T` (a bare name `"x"` is read as `{ kind = "x" }`).
+pub(crate) fn name_or_table<'de, D, T>(de: D) -> Result<T, D::Error>
+where
+    D: Deserializer<'de>,
+    T: DeserializeOwned,
+{
+    let v = serde_json::Value::deserialize(de)?;
+    let v = match v {
+        serde_json::Value::String(s) => {
+            let mut m = serde_json::Map::new();
+            m.insert("kind".into(), serde_json::Value::String(s));
+            serde_json::Value::Object(m)
+        }
+        other => other,
+    };
+    serde_json::from_value(v).map_err(serde::de::Error::custom)
+}
+
+/// Where the framework comes from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameworkSpec {
+    /// A shipped preset: `hexagon`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
+    /// A framework file (`edgekf.framework/1`), resolved by the caller (the library reads no files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// Inline: dimension.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dim: Option<usize>,
+    /// Inline: configuration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub config: Option<Vec<Vec<f64>>>,
+    /// Inline: undirected links.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edges: Option<Vec<[usize; 2]>>,
+    /// Inline: one weight per link.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<Vec<f64>>,
+    /// Leaders (inline, or overriding a preset's/file's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leaders: Option<Vec<usize>>,
+    /// Inline: name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+}
+
+/// Simulation size and randomness.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimSpec {
+    /// Time step Δt in seconds (default 0.001).
+    pub dt: f64,
+    /// Number of steps (default 30 000).
+    pub steps: usize,
+    /// Monte Carlo runs (default 50).
+    pub runs: usize,
+    /// Seed of all randomness (default 1).
+    pub seed: u64,
+    /// Measurements per step T (default 10).
+    pub samples_per_step: usize,
+    /// Report every this many steps (default 10).
+    pub every: usize,
+    /// The run whose agent paths are recorded (default 0).
+    pub paths_run: usize,
+    /// Run a closed loop past its stability bound, and end with success even when an estimator
+    /// diverges (default false: both are refused / reported as failures).
+    pub allow_divergence: bool,
+}
+
+impl Default for SimSpec {
+    fn default() -> Self {
+        Self {
+            dt: 1e-3,
+            steps: 30_000,
+            runs: 50,
+            seed: 1,
+            samples_per_step: 10,
+            every: 10,
+            paths_run: 0,
+            allow_divergence: false,
+        }
+    }
+}
+
+/// Initial positions `z_1^i ~ N(μ, P)` (i.i.d. over agents).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitSpec {
+    /// μ (default 0).
+    pub mean: Option<Vec<f64>>,
+    /// P (default I).
+    pub cov: Option<Vec<Vec<f64>>>,
+}
+
+/// Noise (thesis §4.2.3).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NoiseSpec {
+    /// Process noise scale σ_w (default 0.001): `Q = σ_w² Q_A ⊗ I_D` unless `process_cov` is
+    /// given.
+    pub sigma_w: f64,
+    /// Measurement noise scale σ_v (default 0.1): `R_ij = σ_v² ((1 − ρ) I + ρ 11ᵀ)` unless
+    /// `meas_cov` is given.
+    pub sigma_v: f64,
+    /// ρ, the correlation between coordinates of a measurement (default 0.3).
+    pub meas_corr: f64,
+    /// The spatial kernel of `Q_A` (default thesis (4.14), exponential with length 2).
+    pub kernel: Kernel,
+    /// Evaluate the kernel on the normalised configuration (thesis (4.14); default true).
+    pub normalise: bool,
+    /// Explicit `Q` (ND × ND, agent-major), overriding σ_w and the kernel.
+    pub process_cov: Option<Vec<Vec<f64>>>,
+    /// Explicit `R_ij` (D × D) for every edge, overriding σ_v and ρ.
+    pub meas_cov: Option<Vec<Vec<f64>>>,
+}
+
+impl Default for NoiseSpec {
+    fn default() -> Self {
+        Self {
+            sigma_w: 0.001,
+            sigma_v: 0.1,
+            meas_corr: 0.3,
+            kernel: Kernel::default(),
+            normalise: true,
+            process_cov: None,
+            meas_cov: None,
+        }
+    }
+}
+
+/// The followers' law (Li & Rajan Table 1): `"static"`, `"pi"`, `"varying-velocity"`, or a table
+/// with that kind's options.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum LawSpec {
+    /// `u_i = −c Σ_j l_ij ẑ_ij` with `c = control.follower_gain`.
+    Static {},
+    /// `u_i = −α Σ_j l_ij ẑ_ij − η Σ_τ Σ_j l_ij ẑ_ij(τ)`.
+    Pi {
+        /// α (default `control.follower_gain`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<f64>,
+        /// η, per step (default 0.001).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        eta: Option<f64>,
+    },
+    /// Zhao 2018: `u_i = −(1/γ_i) Σ_j l_ij (ẑ_ij − ż_j)`.
+    VaryingVelocity {},
+}
+
+impl Default for LawSpec {
+    fn default() -> Self {
+        LawSpec::Static {}
+    }
+}
+
+/// How leaders move: `"distance"` (the thesis's law among mutually linked leaders) or
+/// `"target"` (set on the maneuver's target each step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LeaderSpec {
+    /// The distance-based law (thesis §3.5).
+    Distance,
+    /// Track the target (Li & Rajan §II-C).
+    Target,
+}
+
+/// What the followers' controllers act on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FeedbackSpec {
+    /// Each estimator's own estimates (closed loop; the default).
+    #[default]
+    Estimates,
+    /// The true edges: the estimators run beside a loop they do not steer (Li & Rajan §VI-B).
+    Truth,
+}
+
+/// Control.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControlSpec {
+    /// Gain `c` of the static follower law (default 1).
+    pub follower_gain: f64,
+    /// Gain `k` of the leaders' distance law (default 1).
+    pub leader_gain: f64,
+    /// The followers' law (default `"static"`).
+    #[serde(deserialize_with = "name_or_table")]
+    pub law: LawSpec,
+    /// The leaders' mode (default: `"target"` with a `[maneuver]`, else `"distance"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leaders: Option<LeaderSpec>,
+    /// What the controllers act on (default `"estimates"`).
+    pub feedback: FeedbackSpec,
+}
+
+impl Default for ControlSpec {
+    fn default() -> Self {
+        Self {
+            follower_gain: 1.0,
+            leader_gain: 1.0,
+            law: LawSpec::default(),
+            leaders: None,
+            feedback: FeedbackSpec::default(),
+        }
+    }
+}
+
+/// Communication between neighbours (thesis chapter 6).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommSpec {
+    /// Probability that a directed link loses the neighbour's current input, per step
+    /// (the default of `rkf-ar` / `jrkf-ar` entries, which may override it).
+    pub p_fail: f64,
+    /// The AR(p) model of the inputs used by `rkf-ar`, `jrkf-ar` and (order 1) `rkf-commless`;
+    /// fit it with `edgekf fit-ar`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ar: Option<ArModel>,
+}
+
+/// An agent that leaves (and maybe comes back).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DepartureSpec {
+    /// The agent (a follower).
+    pub agent: usize,
+    /// When it leaves [s].
+    pub at: f64,
+    /// When it comes back [s] (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rejoin: Option<f64>,
+}
+
+/// A random share of the followers leaves at one time, a different subset in every run
+/// (Li & Rajan Fig. 13).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RandomDepartureSpec {
+    /// Share of the followers that leaves, in [0, 1] (rounded to a whole number of agents).
+    pub share: f64,
+    /// When they leave [s].
+    pub at: f64,
+}
+
+/// Faults (Li & Rajan §III-A: S1 one-way links, S2 lost edges, S3 departing agents).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FaultSpec {
+    /// `λ`: each directed edge's measurement (and message) is available with this probability
+    /// per step, independently per direction (default 1).
+    pub availability: f64,
+    /// Directed edges `[i, j]` that are never available (`λ_ij = 0`).
+    pub lost: Vec<[usize; 2]>,
+    /// Agents that depart at a time and may rejoin.
+    pub departures: Vec<DepartureSpec>,
+    /// A random share of the followers departing (per run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_departures: Option<RandomDepartureSpec>,
+}
+
+impl Default for FaultSpec {
+    fn default() -> Self {
+        Self {
+            availability: 1.0,
+            lost: Vec::new(),
+            departures: Vec::new(),
+            random_departures: None,
+        }
+    }
+}
+
+impl FaultSpec {
+    /// Whether any fault is configured.
+    pub fn any(&self) -> bool {
+        self.availability < 1.0
+            || !self.lost.is_empty()
+            || !self.departures.is_empty()
+            || self.random_departures.is_some_and(|r| r.share > 0.0)
+    }
+}
+
+/// Key frames of a maneuver: a preset name or a list.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum KeyframesSpec {
+    /// A shipped maneuver (`"garkf-fig7b"`, `"hold"`).
+    Preset(String),
+    /// Explicit key frames.
+    List(Vec<KeyframeSpec>),
+}
+
+/// A maneuver: the target `Z*(t) = Θ*(t) P + t*(t) 1ᵀ` (Li & Rajan eq. 2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManeuverSpec {
+    /// The key frames.
+    pub keyframes: KeyframesSpec,
+}
+
+/// Extra metric options.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MetricsSpec {
+    /// The directed edge `[i, j]` whose covariance `edge_cov_trace` reports.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub edge: Option<[usize; 2]>,
+}
+
+/// A figure to draw from the results (the CLI draws; the library only carries the request).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum PlotSpec {
+    /// A metric over time: mean ± 1σ over the runs.
+    Metric {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// The metric name.
+        metric: String,
+        /// Logarithmic y axis.
+        #[serde(default)]
+        log_y: bool,
+        /// Logarithmic time axis (shows the transient).
+        #[serde(default)]
+        log_x: bool,
+        /// Estimator labels to show (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        estimators: Option<Vec<String>>,
+    },
+    /// Agent paths of the recorded run.
+    Paths {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// Estimator labels to show (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        estimators: Option<Vec<String>>,
+    },
+    /// One agent's input over time in the recorded run.
+    Inputs {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// The agent.
+        agent: usize,
+        /// Estimator labels to show (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        estimators: Option<Vec<String>>,
+    },
+}
+
+impl PlotSpec {
+    /// File stem.
+    pub fn file(&self) -> &str {
+        match self {
+            PlotSpec::Metric { file, .. }
+            | PlotSpec::Paths { file, .. }
+            | PlotSpec::Inputs { file, .. } => file,
+        }
+    }
+    /// Title.
+    pub fn title(&self) -> &str {
+        match self {
+            PlotSpec::Metric { title, .. }
+            | PlotSpec::Paths { title, .. }
+            | PlotSpec::Inputs { title, .. } => title,
+        }
+    }
+    /// The estimator labels it restricts to.
+    pub fn estimators(&self) -> Option<&[String]> {
+        match self {
+            PlotSpec::Metric { estimators, .. }
+            | PlotSpec::Paths { estimators, .. }
+            | PlotSpec::Inputs { estimators, .. } => estimators.as_deref(),
+        }
+    }
+}
+
+/// One estimator entry: a bare kind name (`"rkf"`) or a table
+/// (`{ kind = "mmse", prior_var = 1e-3, label = "mmse-1e-3", samples = 10 }`): `kind`, the
+/// common `label` and `samples`, and that kind's own options.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct EstimatorEntry(pub serde_json::Map<String, serde_json::Value>);
+
+impl EstimatorEntry {
+    /// An entry of kind `kind` without options.
+    pub fn kind(kind: &str) -> Self {
+        let mut m = serde_json::Map::new();
+        m.insert("kind".into(), kind.into());
+        Self(m)
+    }
+
+    /// This entry with option `key = value` (also `label`, `samples`).
+    #[must_use]
+    pub fn with(mut self, key: &str, value: impl Into<serde_json::Value>) -> Self {
+        self.0.insert(key.into(), value.into());
+        self
+    }
+}
+
+impl<'de> Deserialize<'de> for EstimatorEntry {
+    fn deserialize<D: Deserializer<'de>>(de: D) -> Result<Self, D::Error> {
+        match serde_json::Value::deserialize(de)? {
+            serde_json::Value::String(s) => Ok(EstimatorEntry::kind(&s)),
+            serde_json::Value::Object(m) => Ok(EstimatorEntry(m)),
+            other => Err(serde::de::Error::custom(format!(
+                "an estimator is a name or a table with `kind`, got {other}"
+            ))),
+        }
+    }
+}
+
+/// A scenario file as written by a person (TOML). Every key but `name`, `framework` and
+/// `estimators` has the papers' default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    /// Name.
+    pub name: String,
+    /// What it reproduces.
+    #[serde(default)]
+    pub description: String,
+    /// Framework source.
+    pub framework: FrameworkSpec,
+    /// Size and seed.
+    #[serde(default)]
+    pub sim: SimSpec,
+    /// Initial positions.
+    #[serde(default)]
+    pub init: InitSpec,
+    /// Noise model.
+    #[serde(default)]
+    pub noise: NoiseSpec,
+    /// Control laws and gains.
+    #[serde(default)]
+    pub control: ControlSpec,
+    /// Communication: link failures and the input model (thesis chapter 6).
+    #[serde(default)]
+    pub comm: CommSpec,
+    /// Faults: lost links, one-way links, departing agents (Li & Rajan).
+    #[serde(default)]
+    pub faults: FaultSpec,
+    /// A target maneuver for target-tracking leaders.
+    #[serde(default)]
+    pub maneuver: Option<ManeuverSpec>,
+    /// Metric options.
+    #[serde(default)]
+    pub metrics: MetricsSpec,
+    /// Estimators to compare (paired: same initial positions, noise and faults).
+    pub estimators: Vec<EstimatorEntry>,
+    /// Figures.
+    #[serde(default)]
+    pub plots: Vec<PlotSpec>,
+}
+
+impl ScenarioSpec {
+    /// The smallest scenario: a name, the hexagon preset and the estimators, everything else at
+    /// its default.
+    pub fn minimal(name: &str, estimators: &[&str]) -> Self {
+        Self {
+            name: name.into(),
+            description: String::new(),
+            framework: FrameworkSpec {
+                preset: Some("hexagon".into()),
+                ..FrameworkSpec::default()
+            },
+            sim: SimSpec::default(),
+            init: InitSpec::default(),
+            noise: NoiseSpec::default(),
+            control: ControlSpec::default(),
+            comm: CommSpec::default(),
+            faults: FaultSpec::default(),
+            maneuver: None,
+            metrics: MetricsSpec::default(),
+            estimators: estimators.iter().map(|k| EstimatorEntry::kind(k)).collect(),
+            plots: Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! Named metrics, collected at the reported steps by observers (in the style of argmin's): each
+//! metric measures one value per run from what the step's stages produced; the engine stores
+//! them under their names and knows nothing else about them. A new output is a new [`Metric`]
+//! listed in [`metrics_for`], not a change of the engine.
+//!
+//! Names and meanings are fixed by the output contract (DESIGN.md):
+//! `est_error` ε_k = ‖x_k − x̂_{k|k}‖ over the tracked directed edges (thesis 4.34),
+//! `est_error_sq` ε_k², `cov_trace` (the estimator's summed posterior trace of the tracked
+//! edges), `procrustes` (thesis Def. 2.9, over the agents present), `tracking_error`
+//! δ_k = ‖Z_k − Z_k*‖²_F / N over the agents present (Li & Rajan eq. 4), `edge_cov_trace`, and the
+//! quantities an estimator reports itself (e.g. GA-RKF's `psi`).
+
+use crate::by_dim;
+use crate::estimate::{Estimator, Step};
+use crate::framework::Framework;
+use crate::metrics::procrustes_where;
+use crate::scenario::{EstimatorDef, Scenario};
+
+/// What a metric reads at a reported step.
+#[derive(Clone, Copy)]
+pub struct Measure<'a> {
+    /// The step's stage outputs (faults, truth, target).
+    pub step: &'a Step<'a>,
+    /// The estimator, after its update.
+    pub estimator: &'a dyn Estimator,
+    /// Positions `z_k` (ND rows × runs).
+    pub z: &'a [f64],
+    /// The framework.
+    pub framework: &'a Framework,
+    /// Runs in the batch.
+    pub runs: usize,
+}
+
+/// A named per-run measurement.
+pub trait Metric: Send + Sync {
+    /// The name in `metrics.csv`.
+    fn name(&self) -> &str;
+    /// One value per run into `out`.
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]);
+}
+
+/// `ε_k²` over the tracked edges.
+struct EstErrorSq {
+    root: bool,
+}
+
+impl Metric for EstErrorSq {
+    fn name(&self) -> &str {
+        if self.root {
+            "est_error"
+        } else {
+            "est_error_sq"
+        }
+    }
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
+        let runs = m.runs;
+        let d = m.framework.dim();
+        let xh = m.estimator.estimates();
+        let x = m.step.truth;
+        let faults = m.step.faults;
+        let me = m.framework.graph().num_edges();
+        for (r, o) in out.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for e in 0..me {
+                if faults.measurement_faults() && !faults.tracked(e, r) {
+                    continue;
+                }
+                for a in e * d..(e + 1) * d {
+                    let v = x[a * runs + r] - xh[a * runs + r];
+                    s += v * v;
+                }
+            }
+            *o = if self.root { s.sqrt() } else { s };
+        }
+    }
+}
+
+/// The estimator's `cov_trace`.
+struct CovTrace;
+
+impl Metric for CovTrace {
+    fn name(&self) -> &str {
+        "cov_trace"
+    }
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
+        m.estimator.cov_trace(m.step, out);
+    }
+}
+
+/// Procrustes error of the present agents' positions.
+struct Procrustes;
+
+impl Metric for Procrustes {
+    fn name(&self) -> &str {
+        "procrustes"
+    }
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
+        let runs = m.runs;
+        let n = m.framework.agents();
+        let f = m.step.faults;
+        let cfg = m.framework.config();
+        by_dim!(m.framework.dim(), D => {
+            for (r, o) in out.iter_mut().enumerate() {
+                *o = procrustes_where::<D>(
+                    n,
+                    |i| f.present(i, r),
+                    |i, d| m.z[(i * D + d) * runs + r],
+                    cfg,
+                );
+            }
+        });
+    }
+}
+
+/// δ_k = Σ_{present i} ‖z_i − z_i*‖² / (number present).
+struct TrackingError;
+
+impl Metric for TrackingError {
+    fn name(&self) -> &str {
+        "tracking_error"
+    }
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
+        let Some(t) = m.step.target else {
+            out.fill(f64::NAN);
+            return;
+        };
+        let runs = m.runs;
+        let d = m.framework.dim();
+        let n = m.framework.agents();
+        for (r, o) in out.iter_mut().enumerate() {
+            let mut s = 0.0;
+            let mut count = 0usize;
+            for i in (0..n).filter(|&i| m.step.faults.present(i, r)) {
+                count += 1;
+                for a in 0..d {
+                    let v = m.z[(i * d + a) * runs + r] - t.positions[i * d + a];
+                    s += v * v;
+                }
+            }
+            *o = s / count.max(1) as f64;
+        }
+    }
+}
+
+/// A quantity the estimator reports itself.
+struct Quantity(&'static str);
+
+impl Metric for Quantity {
+    fn name(&self) -> &str {
+        self.0
+    }
+    fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
+        if !m.estimator.quantity(self.0, m.step, out) {
+            out.fill(f64::NAN);
+        }
+    }
+}
+
+/// The metrics of estimator `def` in `sc`, in output order: `est_error`, `est_error_sq`,
+/// `cov_trace`, `procrustes`, then `tracking_error` with a target, then the estimator's own
+/// (`edge_cov_trace` only when `[metrics] edge` is set).
+pub fn metrics_for(sc: &Scenario, def: &EstimatorDef) -> Vec<Box<dyn Metric>> {
+    let mut out: Vec<Box<dyn Metric>> = vec![
+        Box::new(EstErrorSq { root: true }),
+        Box::new(EstErrorSq { root: false }),
+        Box::new(CovTrace),
+        Box::new(Procrustes),
+    ];
+    if sc.trajectory().is_some() {
+        out.push(Box::new(TrackingError));
+    }
+    for &q in def.config().metrics() {
+        if q == "edge_cov_trace" && sc.metric_edge().is_none() {
+            continue;
+        }
+        out.push(Box::new(Quantity(q)));
+    }
+    out
+}
+
+/// The names of [`metrics_for`].
+pub fn names_for(sc: &Scenario, def: &EstimatorDef) -> Vec<String> {
+    metrics_for(sc, def)
+        .iter()
+        .map(|m| m.name().to_string())
+        .collect()
+}

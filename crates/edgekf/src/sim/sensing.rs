@@ -1,0 +1,75 @@
+//! The sensing stage: the mean of the T measurements of every directed edge,
+//! `ȳ = x + chol(R_ij / T) η`, drawn directly — with `H = 1_T ⊗ I_D` every estimator depends on
+//! the T samples only through their mean, which is exactly `N(z_ij, R_ij / T)` (DESIGN.md), so
+//! this is not an approximation. One noise realisation per T value per step, shared by all the
+//! estimators that use that T (common random numbers).
+
+use crate::linalg::{batch_gemv, psd_factor, to_row_major};
+use nalgebra::DMatrix;
+
+/// Measurement-mean noise for each distinct T.
+#[derive(Debug, Clone)]
+pub(crate) struct Sensing {
+    /// The distinct T values, ascending.
+    pub(crate) t_values: Vec<usize>,
+    /// Per T: `chol(R_e / T)` row-major per edge (M × D × D).
+    factors: Vec<Vec<f64>>,
+    /// Per T: the noise `v̄` (M·D rows × runs).
+    pub(crate) vbar: Vec<Vec<f64>>,
+    d: usize,
+    runs: usize,
+}
+
+impl Sensing {
+    pub(crate) fn new(
+        meas_cov: &[DMatrix<f64>],
+        d: usize,
+        t_values: Vec<usize>,
+        runs: usize,
+    ) -> Self {
+        let m = meas_cov.len();
+        let factors = t_values
+            .iter()
+            .map(|&t| {
+                let mut out = vec![0.0; m * d * d];
+                for (e, r) in meas_cov.iter().enumerate() {
+                    let f = psd_factor(&(r / t as f64)).expect("checked PSD");
+                    to_row_major(&f, &mut out[e * d * d..(e + 1) * d * d]);
+                }
+                out
+            })
+            .collect();
+        let vbar = vec![vec![0.0; m * d * runs]; t_values.len()];
+        Self {
+            t_values,
+            factors,
+            vbar,
+            d,
+            runs,
+        }
+    }
+
+    /// The index of T in [`Sensing::t_values`].
+    pub(crate) fn index_of(&self, t: usize) -> usize {
+        self.t_values.binary_search(&t).expect("listed")
+    }
+
+    /// `v̄ = chol(R/T) η` for every T from this step's normals.
+    pub(crate) fn update(&mut self, eta: &[f64]) {
+        let (d, runs) = (self.d, self.runs);
+        for (f, v) in self.factors.iter().zip(self.vbar.iter_mut()) {
+            let m = f.len() / (d * d);
+            for e in 0..m {
+                let span = e * d * runs..(e + 1) * d * runs;
+                batch_gemv(
+                    &f[e * d * d..(e + 1) * d * d],
+                    d,
+                    d,
+                    &eta[span.clone()],
+                    &mut v[span],
+                    runs,
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,293 @@
+//! The world stage: the per-run random streams, the draws of each step in a documented, stable
+//! order, the noise factors, and the targets.
+//!
+//! Run `r` draws from its own Xoshiro256++ stream seeded from `(seed, r)`, in this order:
+//! 1. at the start: the initial positions (N·D standard normals), then, with random departures,
+//!    the departing subset (a partial Fisher–Yates shuffle of the followers: one uniform integer
+//!    per departing agent);
+//! 2. every step k: the measurement-mean noise (M·D normals, only when R ≠ 0), the process noise
+//!    (N·D normals, only when Q ≠ 0), the chapter 6 link-failure uniforms (M, only when an
+//!    estimator has `0 < P_fail < 1`), the availability uniforms (M, only when `0 < λ < 1`).
+//!
+//! New draws are appended, never reordered: that order is part of the reproducibility contract.
+
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+use crate::control::maneuver::{target_positions, Trajectory};
+use crate::estimate::Target;
+use crate::linalg::{batch_gemv, psd_factor, to_row_major};
+
+/// Seed of run `r`'s stream (SplitMix64 finaliser of the pair).
+pub fn run_seed(seed: u64, r: usize) -> u64 {
+    let mut x = seed
+        ^ (r as u64)
+            .wrapping_add(1)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+/// A square-root factor `C` (`C Cᵀ = Σ`) applied to batches, in the cheapest exact form.
+#[derive(Debug, Clone)]
+pub(crate) enum Factor {
+    /// Σ = 0.
+    Zero,
+    /// Diagonal Σ: the standard deviations.
+    Diagonal(Vec<f64>),
+    /// Σ = A ⊗ I_D: `chol(A)` row-major (n × n), applied per coordinate.
+    Kron { a: Vec<f64>, n: usize, d: usize },
+    /// Dense, row-major.
+    Dense { c: Vec<f64>, n: usize },
+}
+
+impl Factor {
+    /// The factor of a checked PSD covariance of `n·d` rows (`d` the spatial dimension).
+    pub(crate) fn of(cov: &DMatrix<f64>, d: usize) -> Self {
+        let nd = cov.nrows();
+        if cov.iter().all(|&v| v == 0.0) {
+            return Factor::Zero;
+        }
+        let diagonal = (0..nd).all(|i| (0..nd).all(|j| i == j || cov[(i, j)] == 0.0));
+        if diagonal {
+            return Factor::Diagonal((0..nd).map(|i| cov[(i, i)].max(0.0).sqrt()).collect());
+        }
+        let n = nd / d;
+        let kron = d > 1
+            && (0..n).all(|a| {
+                (0..n).all(|b| {
+                    let v = cov[(a * d, b * d)];
+                    (0..d).all(|x| {
+                        (0..d).all(|y| {
+                            let want = if x == y { v } else { 0.0 };
+                            cov[(a * d + x, b * d + y)].to_bits() == want.to_bits()
+                        })
+                    })
+                })
+            });
+        if kron {
+            let a = DMatrix::from_fn(n, n, |i, j| cov[(i * d, j * d)]);
+            if let Some(f) = psd_factor(&a) {
+                let mut rm = vec![0.0; n * n];
+                to_row_major(&f, &mut rm);
+                return Factor::Kron { a: rm, n, d };
+            }
+        }
+        let f = psd_factor(cov).expect("checked PSD");
+        let mut c = vec![0.0; nd * nd];
+        to_row_major(&f, &mut c);
+        Factor::Dense { c, n: nd }
+    }
+
+    pub(crate) fn is_zero(&self) -> bool {
+        matches!(self, Factor::Zero)
+    }
+
+    /// `out = C ξ` for a batch (rows × runs, runs innermost).
+    pub(crate) fn apply(&self, xi: &[f64], out: &mut [f64], runs: usize) {
+        match self {
+            Factor::Zero => out.fill(0.0),
+            Factor::Diagonal(s) => {
+                for (row, sd) in s.iter().enumerate() {
+                    let span = row * runs..(row + 1) * runs;
+                    for (o, x) in out[span.clone()].iter_mut().zip(&xi[span]) {
+                        *o = sd * x;
+                    }
+                }
+            }
+            Factor::Kron { a, n, d } => {
+                let (n, d) = (*n, *d);
+                out.fill(0.0);
+                for i in 0..n {
+                    for j in 0..=i {
+                        let c = a[i * n + j];
+                        if c == 0.0 {
+                            continue;
+                        }
+                        for k in 0..d {
+                            let (ri, rj) = ((i * d + k) * runs, (j * d + k) * runs);
+                            for (o, x) in out[ri..ri + runs].iter_mut().zip(&xi[rj..rj + runs]) {
+                                *o += c * x;
+                            }
+                        }
+                    }
+                }
+            }
+            Factor::Dense { c, n } => batch_gemv(c, *n, *n, xi, out, runs),
+        }
+    }
+}
+
+/// What the world draws every step, for a chunk of runs (runs innermost).
+#[derive(Debug, Clone)]
+pub(crate) struct Draws {
+    /// Measurement normals η (M·D rows), when R ≠ 0.
+    pub(crate) eta: Vec<f64>,
+    /// Process normals ξ (N·D rows), when Q ≠ 0.
+    pub(crate) xi: Vec<f64>,
+    /// Link-failure uniforms (M rows), when needed.
+    pub(crate) comm: Vec<f64>,
+    /// Availability uniforms (M rows), when needed.
+    pub(crate) avail: Vec<f64>,
+}
+
+/// The per-run streams of a chunk and the per-step draws.
+#[derive(Debug, Clone)]
+pub(crate) struct World {
+    rngs: Vec<Xoshiro256PlusPlus>,
+    pub(crate) draws: Draws,
+    md: usize,
+    nd: usize,
+    m: usize,
+    draw_eta: bool,
+    draw_xi: bool,
+    draw_comm: bool,
+    draw_avail: bool,
+}
+
+impl World {
+    /// The streams of runs `range` and buffers for the draws this scenario needs.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn new(
+        seed: u64,
+        range: std::ops::Range<usize>,
+        m: usize,
+        md: usize,
+        nd: usize,
+        draw_eta: bool,
+        draw_xi: bool,
+        draw_comm: bool,
+        draw_avail: bool,
+    ) -> Self {
+        let runs = range.len();
+        Self {
+            rngs: range
+                .map(|r| Xoshiro256PlusPlus::seed_from_u64(run_seed(seed, r)))
+                .collect(),
+            draws: Draws {
+                eta: vec![0.0; if draw_eta { md * runs } else { 0 }],
+                xi: vec![0.0; if draw_xi { nd * runs } else { 0 }],
+                comm: vec![0.0; if draw_comm { m * runs } else { 0 }],
+                avail: vec![0.0; if draw_avail { m * runs } else { 0 }],
+            },
+            md,
+            nd,
+            m,
+            draw_eta,
+            draw_xi,
+            draw_comm,
+            draw_avail,
+        }
+    }
+
+    /// Initial positions `z_1 = μ + C_P ξ` (N·D rows × runs), drawn first in every stream.
+    pub(crate) fn initial_positions(&mut self, mean: &[f64], cov: &DMatrix<f64>, z: &mut [f64]) {
+        let d = mean.len();
+        let n = self.nd / d;
+        let runs = self.rngs.len();
+        let f = psd_factor(cov).expect("checked PSD");
+        for (lr, rng) in self.rngs.iter_mut().enumerate() {
+            for i in 0..n {
+                let xi: Vec<f64> = (0..d).map(|_| rng.sample(StandardNormal)).collect();
+                for a in 0..d {
+                    let mut v = mean[a];
+                    for (b, x) in xi.iter().enumerate() {
+                        v += f[(a, b)] * x;
+                    }
+                    z[(i * d + a) * runs + lr] = v;
+                }
+            }
+        }
+    }
+
+    /// A random subset of `count` of `candidates` per run (partial Fisher–Yates), drawn after
+    /// the initial positions: `out[r]` lists run r's agents.
+    pub(crate) fn subsets(&mut self, candidates: &[usize], count: usize) -> Vec<Vec<usize>> {
+        self.rngs
+            .iter_mut()
+            .map(|rng| {
+                let mut pool = candidates.to_vec();
+                let count = count.min(pool.len());
+                for k in 0..count {
+                    let j = rng.random_range(k..pool.len());
+                    pool.swap(k, j);
+                }
+                pool.truncate(count);
+                pool
+            })
+            .collect()
+    }
+
+    /// The draws of one step, in the fixed per-run order.
+    pub(crate) fn draw_step(&mut self) {
+        let runs = self.rngs.len();
+        let d = &mut self.draws;
+        for (lr, rng) in self.rngs.iter_mut().enumerate() {
+            if self.draw_eta {
+                for a in 0..self.md {
+                    d.eta[a * runs + lr] = rng.sample(StandardNormal);
+                }
+            }
+            if self.draw_xi {
+                for a in 0..self.nd {
+                    d.xi[a * runs + lr] = rng.sample(StandardNormal);
+                }
+            }
+            if self.draw_comm {
+                for e in 0..self.m {
+                    d.comm[e * runs + lr] = rng.random::<f64>();
+                }
+            }
+            if self.draw_avail {
+                for e in 0..self.m {
+                    d.avail[e * runs + lr] = rng.random::<f64>();
+                }
+            }
+        }
+    }
+}
+
+/// The targets at step k and k + 1, recomputed each step from the trajectory.
+#[derive(Debug, Clone)]
+pub(crate) struct Targets {
+    pub(crate) now: Target,
+    pub(crate) next: Target,
+}
+
+impl Targets {
+    pub(crate) fn new(n: usize, d: usize) -> Self {
+        let t = Target {
+            theta: vec![0.0; d * d],
+            shift: vec![0.0; d],
+            positions: vec![0.0; n * d],
+            velocities: vec![0.0; n * d],
+        };
+        Self {
+            now: t.clone(),
+            next: t,
+        }
+    }
+
+    /// `Z*(t_k)` and `Z*(t_{k+1})` (no allocation).
+    pub(crate) fn update(
+        &mut self,
+        traj: &dyn Trajectory,
+        config: &[f64],
+        d: usize,
+        k: usize,
+        dt: f64,
+    ) {
+        for (t, tgt) in [
+            (k as f64 * dt, &mut self.now),
+            ((k + 1) as f64 * dt, &mut self.next),
+        ] {
+            let s = traj.at(t, d);
+            target_positions(&s, config, d, &mut tgt.positions, &mut tgt.velocities);
+            tgt.theta.copy_from_slice(&s.theta[..d * d]);
+            tgt.shift.copy_from_slice(&s.shift[..d]);
+        }
+    }
+}
