@@ -509,17 +509,11 @@ fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
     if over.allow_divergence {
         sc = sc.with_allow_divergence(true)?;
     }
-    if let Some(r) = over.runs {
-        sc = sc.with_runs(r)?;
-    }
-    if let Some(s) = over.steps {
-        sc = sc.with_steps(s)?;
+    if over.runs.is_some() || over.steps.is_some() || over.every.is_some() {
+        sc = sc.with_size(over.runs, over.steps, over.every)?;
     }
     if let Some(s) = over.seed {
         sc = sc.with_seed(s);
-    }
-    if let Some(e) = over.every {
-        sc = sc.with_every(e)?;
     }
     Ok(sc)
 }

@@ -309,3 +309,146 @@ fn fit_ar_prints_a_table_a_scenario_can_take() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--from"));
 }
+
+/// `--shard I/K` runs contiguous run ranges with the usual per-run seeds; `merge` writes a
+/// metrics.csv byte-identical to the unsharded run's.
+#[test]
+fn shards_merge_into_the_unsharded_bytes() {
+    let dir = tmp("shards");
+    let sc = write_scenario(&dir, &SQUARE.replace("runs = 3", "runs = 7"));
+    let whole = dir.join("whole");
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        whole.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut parts = Vec::new();
+    for i in 1..=3 {
+        let d = dir.join(format!("part{i}"));
+        let shard = format!("{i}/3");
+        let o = edgekf(&[
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            &shard,
+            "--threads",
+            "1",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        parts.push(d);
+    }
+    let merged = dir.join("merged");
+    let mut args = vec!["merge"];
+    // Any order.
+    for p in parts.iter().rev() {
+        args.push(p.to_str().unwrap());
+    }
+    args.extend(["--out", merged.to_str().unwrap()]);
+    let o = edgekf(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["metrics.csv", "paths.csv", "status.csv", "scenario.json"] {
+        assert_eq!(
+            fs::read(whole.join(f)).unwrap(),
+            fs::read(merged.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // A missing shard is refused, naming the gap.
+    let o = edgekf(&[
+        "merge",
+        parts[0].to_str().unwrap(),
+        parts[2].to_str().unwrap(),
+        "--out",
+        dir.join("bad").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("run"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!dir.join("bad/metrics.csv").exists());
+}
+
+/// A study whose closed loop overflows ends with a typed outcome: status.csv names the
+/// estimator and the step, the summary says it, the exit code is 3 — unless divergence is
+/// allowed. Nothing is written as NaN rows.
+#[test]
+fn divergence_is_an_outcome_not_a_success() {
+    let dir = tmp("diverge");
+    // A huge process variance on one coordinate (PSD, and representable): the leaders' cubic
+    // distance law overflows within a few steps.
+    let mut q = vec![vec![0.0; 8]; 8];
+    q[1][1] = 9.223372036854776e18;
+    let text = SQUARE.replace(
+        "sigma_w = 0.001",
+        &format!("process_cov = {}", serde_json::to_string(&q).unwrap()),
+    );
+    let sc = write_scenario(&dir, &text);
+    let out = dir.join("o");
+    let o = edgekf(&["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("diverged"), "{err}");
+    let status = fs::read_to_string(out.join("status.csv")).unwrap();
+    assert!(status.contains("rkf,diverged,"), "{status}");
+    let metrics = fs::read_to_string(out.join("metrics.csv")).unwrap();
+    assert!(
+        !metrics.contains("NaN") && !metrics.contains("inf"),
+        "no non-finite rows"
+    );
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.join("o2").to_str().unwrap(),
+        "--allow-divergence",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["estimators"][1]["status"], "diverged");
+}
+
+/// The smallest documented scenario runs; a study that cannot fit in memory or time is refused
+/// before it starts, with the estimate named.
+#[test]
+fn smallest_scenario_runs_and_oversized_studies_are_refused() {
+    let dir = tmp("smallest");
+    let sc = write_scenario(
+        &dir,
+        "name = \"smallest\"\nestimators = [\"rkf\"]\n[framework]\npreset = \"hexagon\"\n",
+    );
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+        "--steps",
+        "500",
+        "--runs",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("rkf"));
+    for (every, want) in [("10", "every"), ("1000000000000", "hours")] {
+        let o = edgekf(&[
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            dir.join("big").to_str().unwrap(),
+            "--steps",
+            "1000000000000",
+            "--every",
+            every,
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(want), "{err}");
+        assert!(!dir.join("big").exists());
+    }
+}

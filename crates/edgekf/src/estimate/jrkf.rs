@@ -39,8 +39,8 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use super::{
-    options_of, parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model,
-    Options, Step,
+    check_kalman, options_of, parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind,
+    Model, Options, Step,
 };
 use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
 
@@ -71,7 +71,8 @@ impl EstimatorKind for JrkfKind {
     fn about(&self) -> &'static str {
         "joint relative Kalman filter, one per agent over its edges (EUSIPCO eq. 14)"
     }
-    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
         Ok(Arc::new(Config { ar: None }))
     }
@@ -85,6 +86,7 @@ impl EstimatorKind for JrkfArKind {
         "joint filter with lost inputs predicted by an AR model"
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         let opt: ArOptions = parse_options(o)?;
         let p = opt.p_fail.unwrap_or(m.p_fail);
         if !(0.0..=1.0).contains(&p) {

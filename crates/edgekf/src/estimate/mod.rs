@@ -442,6 +442,25 @@ impl Registry {
     }
 }
 
+/// Whether a Kalman filter on the edges is well posed: every edge needs a positive definite
+/// measurement covariance or a positive definite process covariance (with both singular, the
+/// posterior collapses to zero after the first update and the next innovation covariance is
+/// singular).
+///
+/// # Errors
+/// A message naming the keys to change.
+pub fn check_kalman(m: &Model, kind: &str) -> Result<(), String> {
+    for (e, r) in m.r.iter().enumerate() {
+        if r.clone().cholesky().is_none() && m.edge_q(e, e).cholesky().is_none() {
+            let (i, j) = m.edges[e];
+            return Err(format!(
+                "{kind} is a Kalman filter and needs noise on edge ({i}, {j}): a positive definite measurement covariance (`noise.sigma_v` > 0) or process noise (`noise.sigma_w` > 0); for a noiseless run use `none` or `oracle`"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Converts a dynamic D × D matrix into a static one.
 pub(crate) fn to_static<const D: usize>(m: &DMatrix<f64>) -> SMatrix<f64, D, D> {
     SMatrix::<f64, D, D>::from_fn(|i, j| m[(i, j)])

@@ -47,8 +47,8 @@ use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::{
-    options_of, parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind,
-    Model, Options, Step,
+    check_kalman, options_of, parse_options, to_static, Breakdown, Configured, Cost, Estimator,
+    EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -99,7 +99,8 @@ impl EstimatorKind for RkfKind {
     fn about(&self) -> &'static str {
         "single-edge relative Kalman filter (EUSIPCO eq. 5)"
     }
-    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
         Ok(Arc::new(Config(Input::Known)))
     }
@@ -112,7 +113,8 @@ impl EstimatorKind for RkfZeroKind {
     fn about(&self) -> &'static str {
         "RKF with the neighbour's input taken as zero (thesis §6.3 benchmark)"
     }
-    fn configure(&self, o: &Options, _m: &Model) -> Result<Arc<dyn Configured>, String> {
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
         Ok(Arc::new(Config(Input::Zero)))
     }
@@ -126,6 +128,7 @@ impl EstimatorKind for RkfArKind {
         "RKF with lost inputs predicted by an AR model (thesis Alg. 8)"
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         let opt: ArOptions = parse_options(o)?;
         let p = opt.p_fail.unwrap_or(m.p_fail);
         if !(0.0..=1.0).contains(&p) {

@@ -33,8 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::{
-    parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model,
-    Options, Step,
+    check_kalman, parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind,
+    Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -55,6 +55,7 @@ impl EstimatorKind for Kind {
         "RKF without communication: Wiener prediction of inputs from edge estimates (thesis Alg. 9)"
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
         match &m.ar {
             None => Err(

@@ -153,9 +153,9 @@ pub(crate) fn sim(
     let values = report_count(steps, every) as f64 * runs as f64;
     if values > MAX_VALUES {
         return Err(err(
-            k.key("sim.every"),
+            k.key("sim.steps"),
             format!(
-                "{} reported steps × {runs} runs = {values:.3e} values per metric is more than any machine holds; report less often (`every`)",
+                "{} reported steps × {runs} runs = {values:.3e} values per metric is more than any machine holds; report less often (raise `every`) or run fewer steps",
                 report_count(steps, every)
             ),
         ));

@@ -635,6 +635,31 @@ impl Scenario {
         Ok(self)
     }
 
+    /// With any of `runs`, `steps` and `every` changed together, checked once (so that a larger
+    /// `steps` with a larger `every` is judged as a whole).
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the flag for values out of range.
+    pub fn with_size(
+        mut self,
+        runs: Option<usize>,
+        steps: Option<usize>,
+        every: Option<usize>,
+    ) -> Result<Self, ScenarioError> {
+        if let Some(r) = runs {
+            self.runs = r;
+            self.paths_run = self.paths_run.min(r.saturating_sub(1));
+        }
+        if let Some(s) = steps {
+            self.steps = s;
+        }
+        if let Some(e) = every {
+            self.every = e;
+        }
+        self.recheck(Keys::Flags)?;
+        Ok(self)
+    }
+
     /// With seed `seed`.
     pub fn with_seed(mut self, seed: u64) -> Self {
         self.seed = seed;
@@ -871,11 +896,30 @@ impl Scenario {
         Ok(())
     }
 
+    /// The metrics reported for estimator `def`, in output order: `est_error`, `est_error_sq`,
+    /// `cov_trace`, `procrustes`, then `tracking_error` with a target, then the estimator's own
+    /// quantities (`edge_cov_trace` only when `[metrics] edge` is set).
+    pub fn metrics_of(&self, def: &EstimatorDef) -> Vec<&'static str> {
+        let mut out = vec!["est_error", "est_error_sq", "cov_trace", "procrustes"];
+        if self.maneuver.is_some() {
+            out.push("tracking_error");
+        }
+        for &q in def.config().metrics() {
+            if q == "edge_cov_trace" && self.metric_edge.is_none() {
+                continue;
+            }
+            if !out.contains(&q) {
+                out.push(q);
+            }
+        }
+        out
+    }
+
     /// Every metric name some estimator of this scenario reports.
-    pub fn metric_names(&self) -> Vec<String> {
-        let mut out: Vec<String> = Vec::new();
+    pub fn metric_names(&self) -> Vec<&'static str> {
+        let mut out: Vec<&'static str> = Vec::new();
         for e in &self.estimators {
-            for m in crate::sim::metrics::names_for(self, e) {
+            for m in self.metrics_of(e) {
                 if !out.contains(&m) {
                     out.push(m);
                 }

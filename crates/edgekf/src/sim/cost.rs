@@ -8,7 +8,6 @@
 //! normal draw, ≈ 0.5 ns per floating-point operation of the loops, 2 cores); it is meant to
 //! tell seconds from hours, not to be precise.
 
-use super::metrics::names_for;
 use super::world::Factor;
 use crate::scenario::Scenario;
 
@@ -53,7 +52,7 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
         Factor::Dense { n, .. } => (n * n) as f64,
     };
     for e in sc.estimators() {
-        let metrics = names_for(sc, e).len() as f64;
+        let metrics = sc.metrics_of(e).len() as f64;
         bytes += 2.0 * metrics * reports * runs_f * 8.0;
         bytes += 2.0 * 2.0 * reports * nd * 8.0;
         let c = e.config().cost(model);

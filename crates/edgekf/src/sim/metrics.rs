@@ -156,32 +156,19 @@ impl Metric for Quantity {
     }
 }
 
-/// The metrics of estimator `def` in `sc`, in output order: `est_error`, `est_error_sq`,
-/// `cov_trace`, `procrustes`, then `tracking_error` with a target, then the estimator's own
-/// (`edge_cov_trace` only when `[metrics] edge` is set).
-pub fn metrics_for(sc: &Scenario, def: &EstimatorDef) -> Vec<Box<dyn Metric>> {
-    let mut out: Vec<Box<dyn Metric>> = vec![
-        Box::new(EstErrorSq { root: true }),
-        Box::new(EstErrorSq { root: false }),
-        Box::new(CovTrace),
-        Box::new(Procrustes),
-    ];
-    if sc.trajectory().is_some() {
-        out.push(Box::new(TrackingError));
+/// The metric called `name`: a built-in one, or a quantity the estimator reports itself.
+pub fn metric(name: &'static str) -> Box<dyn Metric> {
+    match name {
+        "est_error" => Box::new(EstErrorSq { root: true }),
+        "est_error_sq" => Box::new(EstErrorSq { root: false }),
+        "cov_trace" => Box::new(CovTrace),
+        "procrustes" => Box::new(Procrustes),
+        "tracking_error" => Box::new(TrackingError),
+        other => Box::new(Quantity(other)),
     }
-    for &q in def.config().metrics() {
-        if q == "edge_cov_trace" && sc.metric_edge().is_none() {
-            continue;
-        }
-        out.push(Box::new(Quantity(q)));
-    }
-    out
 }
 
-/// The names of [`metrics_for`].
-pub fn names_for(sc: &Scenario, def: &EstimatorDef) -> Vec<String> {
-    metrics_for(sc, def)
-        .iter()
-        .map(|m| m.name().to_string())
-        .collect()
+/// The metrics of estimator `def` in `sc`, in output order ([`Scenario::metrics_of`]).
+pub fn metrics_for(sc: &Scenario, def: &EstimatorDef) -> Vec<Box<dyn Metric>> {
+    sc.metrics_of(def).into_iter().map(metric).collect()
 }

@@ -359,7 +359,7 @@ fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options)
     let d = sc.framework().dim();
     let mut estimators = Vec::with_capacity(sc.estimators().len());
     for (e, def) in sc.estimators().iter().enumerate() {
-        let names = metrics::names_for(sc, def);
+        let names: Vec<String> = sc.metrics_of(def).iter().map(|m| m.to_string()).collect();
         let mut values = vec![vec![0.0; nr * runs]; names.len()];
         let mut stop: Option<&Stop> = None;
         let mut paths = Vec::new();
