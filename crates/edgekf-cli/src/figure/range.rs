@@ -1,0 +1,176 @@
+//! Axis ranges that are always drawable: finite, of positive width, within ±[`LIMIT`], and on log axes strictly
+//! positive and not stretched by a few stray tiny values.
+//!
+//! The caller passes only the values that are usable on the axis (finite, and positive on a log axis); what was
+//! left out is counted by the caller. Here:
+//! - values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis) are clamped for the range, counted, and drawn
+//!   clipped at the edge;
+//! - a log axis starts at the smallest positive value, unless that lies more than [`FLOOR_DECADES`] decades below
+//!   the 1st percentile of the positive values: then the axis starts at `p₁ · 10^-FLOOR_DECADES` (the *floor*), and
+//!   the values below it are counted and drawn clipped at the bottom. Exact zeros never reach a log axis at all;
+//! - a zero-width range (a constant, a single point) is widened: ±5 % of the value (±1 for zero) on a linear
+//!   axis, a factor √10 either way on a log axis; a range narrower than 10⁻⁹ of its magnitude likewise;
+//! - no value at all gives 0–1 (linear) or 1–10 (log), and the report says the axis is empty.
+
+use super::Scale;
+
+/// Largest magnitude an axis range reaches (±1e300); beyond it values are clamped.
+pub const LIMIT: f64 = 1e300;
+/// A log axis reaches at most this many decades below the 1st percentile of its positive values.
+pub const FLOOR_DECADES: i32 = 2;
+/// Narrowest range relative to its magnitude; narrower ranges are widened to this.
+pub const MIN_RELATIVE_WIDTH: f64 = 1e-9;
+
+/// What the sanitiser did to one axis; part of the [`super::RenderReport`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AxisReport {
+    /// Lower end of the drawn range.
+    pub lo: f64,
+    /// Upper end of the drawn range.
+    pub hi: f64,
+    /// Values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis), clamped for the range and drawn clipped.
+    pub clamped: usize,
+    /// The log axis floor `p₁ · 10^-FLOOR_DECADES` when it applied.
+    pub floor: Option<f64>,
+    /// Positive values below the floor (drawn clipped at the bottom).
+    pub below_floor: usize,
+    /// The range was widened (zero or near-zero width).
+    pub widened: bool,
+    /// No usable value: the default range is shown.
+    pub empty: bool,
+    /// The axis range was fixed by the caller.
+    pub fixed: bool,
+    /// A fixed range was unusable (non-finite, empty, or not positive on a log axis) and was replaced.
+    pub fixed_ignored: bool,
+}
+
+/// Computes the drawn range from the usable values `v` (they are reordered).
+pub(crate) fn axis_range(
+    v: &mut [f64],
+    scale: Scale,
+    fixed: Option<(f64, f64)>,
+    margin: f64,
+) -> AxisReport {
+    let mut rep = AxisReport::default();
+    if let Some((a, b)) = fixed {
+        let (a, b) = (a.min(b), a.max(b));
+        let ok = a.is_finite()
+            && b.is_finite()
+            && b > a
+            && (scale == Scale::Linear || a > 0.0)
+            && a.abs() <= LIMIT
+            && b.abs() <= LIMIT;
+        if ok {
+            rep.lo = a;
+            rep.hi = b;
+            rep.fixed = true;
+            return rep;
+        }
+        rep.fixed_ignored = true;
+    }
+    let log = scale == Scale::Log;
+    let (lo_lim, hi_lim) = if log {
+        (1.0 / LIMIT, LIMIT)
+    } else {
+        (-LIMIT, LIMIT)
+    };
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for x in v.iter_mut() {
+        if *x < lo_lim || *x > hi_lim {
+            rep.clamped += 1;
+            *x = x.clamp(lo_lim, hi_lim);
+        }
+        lo = lo.min(*x);
+        hi = hi.max(*x);
+    }
+    if v.is_empty() || !(lo.is_finite() && hi.is_finite()) {
+        rep.empty = true;
+        (rep.lo, rep.hi) = if log { (1.0, 10.0) } else { (0.0, 1.0) };
+        return rep;
+    }
+    if log && v.len() >= 100 {
+        let k = (v.len() - 1) / 100;
+        let (_, p1, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+        let floor = *p1 * 10f64.powi(-FLOOR_DECADES);
+        if lo < floor {
+            rep.floor = Some(floor);
+            rep.below_floor = v.iter().filter(|x| **x < floor).count();
+            lo = floor;
+        }
+    }
+    if log {
+        let (mut l0, mut l1) = (lo.log10(), hi.log10());
+        if l1 - l0 < MIN_RELATIVE_WIDTH {
+            let m = (l0 + l1) / 2.0;
+            (l0, l1) = (m - 0.5, m + 0.5);
+            rep.widened = true;
+        }
+        let pad = margin.max(0.0) * (l1 - l0);
+        rep.lo = 10f64.powf((l0 - pad).max(-307.0));
+        rep.hi = 10f64.powf((l1 + pad).min(307.0));
+    } else {
+        let mag = lo.abs().max(hi.abs());
+        if hi - lo <= mag * MIN_RELATIVE_WIDTH || hi - lo <= f64::MIN_POSITIVE {
+            let m = lo / 2.0 + hi / 2.0;
+            let half = if m == 0.0 {
+                1.0
+            } else {
+                (m.abs() * 0.05).max(f64::MIN_POSITIVE)
+            };
+            (lo, hi) = (m - half, m + half);
+            rep.widened = true;
+        }
+        let pad = margin.max(0.0) * (hi / 2.0 - lo / 2.0) * 2.0;
+        rep.lo = (lo - pad).max(-1.1 * LIMIT);
+        rep.hi = (hi + pad).min(1.1 * LIMIT);
+    }
+    rep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constant_and_empty_ranges_are_widened() {
+        let r = axis_range(&mut [3.0, 3.0], Scale::Linear, None, 0.0);
+        assert!(r.widened && r.lo < 3.0 && r.hi > 3.0);
+        let r = axis_range(&mut [0.0], Scale::Linear, None, 0.0);
+        assert_eq!((r.lo, r.hi), (-1.0, 1.0));
+        let r = axis_range(&mut [], Scale::Log, None, 0.1);
+        assert!(r.empty && r.lo == 1.0 && r.hi == 10.0);
+        let r = axis_range(&mut [1e-300], Scale::Log, None, 0.0);
+        assert!(r.widened && r.lo > 0.0 && r.hi > r.lo);
+    }
+
+    #[test]
+    fn huge_values_are_clamped() {
+        let r = axis_range(&mut [-f64::MAX, 0.0, f64::MAX], Scale::Linear, None, 0.05);
+        assert_eq!(r.clamped, 2);
+        assert!(r.lo.is_finite() && r.hi.is_finite() && (r.hi - r.lo).is_finite());
+    }
+
+    #[test]
+    fn stray_tiny_values_do_not_stretch_a_log_axis() {
+        let mut v: Vec<f64> = (0..1000).map(|i| 1e-3 * (1.0 + f64::from(i))).collect();
+        v.push(1e-17);
+        let r = axis_range(&mut v, Scale::Log, None, 0.0);
+        assert_eq!(r.below_floor, 1);
+        let floor = r.floor.expect("floor applies");
+        assert!(floor > 5e-5 && floor < 2e-4, "{floor}");
+        // Data that genuinely spans many decades keep their range.
+        let mut v: Vec<f64> = (0..1000)
+            .map(|i| 10f64.powf(-f64::from(i) / 100.0))
+            .collect();
+        let r = axis_range(&mut v, Scale::Log, None, 0.0);
+        assert!(r.floor.is_none() && r.lo < 1.1e-9);
+    }
+
+    #[test]
+    fn unusable_fixed_ranges_are_replaced() {
+        let r = axis_range(&mut [1.0, 2.0], Scale::Log, Some((0.0, 5.0)), 0.0);
+        assert!(r.fixed_ignored && !r.fixed && r.lo >= 1.0);
+        let r = axis_range(&mut [1.0, 2.0], Scale::Linear, Some((5.0, -5.0)), 0.0);
+        assert!(r.fixed && r.lo == -5.0 && r.hi == 5.0);
+    }
+}
