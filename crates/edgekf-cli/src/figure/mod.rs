@@ -48,7 +48,7 @@ use std::path::{Path, PathBuf};
 
 pub use coincide::CoincideGroup;
 pub use legend::Placement;
-pub use range::AxisReport;
+pub use range::{AxisReport, FloorRule};
 pub use raster::{Canvas, PxRect, Rgb, Shape};
 pub use text::{HAlign, VAlign};
 pub use ticks::Tick;
@@ -558,7 +558,7 @@ pub struct CurveReport {
     pub points: usize,
     /// Points with a non-finite x or y, left out.
     pub non_finite: usize,
-    /// Points with x or y ≤ 0 on a log axis, left out.
+    /// Points with x or y ≤ 0 on a log axis, left out (their x still spans the x axis when it is usable).
     pub non_positive: usize,
     /// Band values that are non-finite (left out) or ≤ 0 on a log axis (drawn to the axis bottom).
     pub band_outside: usize,
@@ -635,61 +635,92 @@ impl PanelReport {
 
     /// Human-readable notes on what was left out, clamped or floored in this panel.
     pub fn warnings(&self) -> Vec<String> {
-        let mut w = Vec::new();
+        self.findings().into_iter().map(|(_, s)| s).collect()
+    }
+
+    /// The notes that point at bad data rather than at a routine log axis: non-finite values, values beyond
+    /// ±10³⁰⁰, no data at all, an unusable fixed range.
+    pub fn problems(&self) -> Vec<String> {
+        self.findings()
+            .into_iter()
+            .filter_map(|(bad, s)| bad.then_some(s))
+            .collect()
+    }
+
+    /// `(is a problem, text)` for everything a reader should know.
+    fn findings(&self) -> Vec<(bool, String)> {
+        let mut w: Vec<(bool, String)> = Vec::new();
         let sum = |f: fn(&CurveReport) -> usize| self.curves.iter().map(f).sum::<usize>();
         let who = |f: fn(&CurveReport) -> usize| {
-            let v: Vec<String> = self
+            let v: Vec<&str> = self
                 .curves
                 .iter()
                 .filter(|c| f(c) > 0 && !c.label.is_empty())
-                .map(|c| text::plain(&c.label))
+                .map(|c| c.label.as_str())
                 .collect();
-            if v.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", v.join(", "))
+            let labelled = self.curves.iter().filter(|c| !c.label.is_empty()).count();
+            match v.len() {
+                0 => String::new(),
+                k if k == labelled && k > 2 => " (all curves)".to_string(),
+                1..=3 => format!(" ({})", v.join(", ")),
+                k => format!(" ({}, {} and {} more)", v[0], v[1], k - 2),
             }
         };
         let n = sum(|c| c.non_finite);
         if n > 0 {
-            w.push(format!(
+            let msg = format!(
                 "{n} non-finite value{} left out{}",
                 plural(n),
                 who(|c| c.non_finite)
-            ));
+            );
+            w.push((true, msg));
         }
         let n = sum(|c| c.non_positive);
         if n > 0 {
-            w.push(format!(
+            let msg = format!(
                 "{n} value{} ≤ 0 left out of the log axis{}",
                 plural(n),
                 who(|c| c.non_positive)
-            ));
+            );
+            w.push((false, msg));
         }
         for (name, a) in [("x", &self.x), ("y", &self.y)] {
             if a.clamped > 0 {
-                w.push(format!(
-                    "{} {name} value{} beyond ±10³⁰⁰ clamped (drawn at the edge)",
-                    a.clamped,
-                    plural(a.clamped)
+                w.push((
+                    true,
+                    format!(
+                        "{} {name} value{} beyond ±10³⁰⁰ (or 10⁻³⁰⁰ on a log axis) lie outside the axis",
+                        a.clamped,
+                        plural(a.clamped)
+                    ),
                 ));
             }
-            if let Some(f) = a.floor {
-                w.push(format!(
-                    "{name} axis starts at {} (10⁻{} × the 1st percentile): {} smaller value{} drawn at the edge",
+            if let Some((f, rule)) = a.floor {
+                let why = match rule {
+                    FloorRule::Percentile => format!(
+                        "{} × the 1st percentile",
+                        ticks::pow10_label(-range::FLOOR_DECADES)
+                    ),
+                    FloorRule::DynamicRange => format!(
+                        "{} × the largest value",
+                        ticks::pow10_label(-range::MAX_DECADES)
+                    ),
+                };
+                let msg = format!(
+                    "{name} axis starts at {} ({why}): {} smaller value{} fall below it",
                     short(f),
-                    range::FLOOR_DECADES,
                     a.below_floor,
                     plural(a.below_floor)
-                ));
+                );
+                w.push((false, msg));
             }
             if a.empty && !self.curves.is_empty() {
-                w.push(format!("no finite {name} data to plot"));
+                w.push((true, format!("no finite {name} data to plot")));
             }
             if a.fixed_ignored {
-                w.push(format!(
-                    "the fixed {name} range was unusable and was replaced by the data's"
-                ));
+                let msg =
+                    format!("the fixed {name} range was unusable and was replaced by the data's");
+                w.push((true, msg));
             }
         }
         w
@@ -730,11 +761,20 @@ pub struct RenderReport {
 impl RenderReport {
     /// What a reader should know, one line each, prefixed by the panel title when there are several panels.
     pub fn warnings(&self) -> Vec<String> {
+        self.collect(PanelReport::warnings)
+    }
+
+    /// Only the notes about bad data (see [`PanelReport::problems`]): what a program should log.
+    pub fn problems(&self) -> Vec<String> {
+        self.collect(PanelReport::problems)
+    }
+
+    fn collect(&self, f: fn(&PanelReport) -> Vec<String>) -> Vec<String> {
         let many = self.panels.len() > 1;
         self.panels
             .iter()
             .flat_map(|p| {
-                p.warnings().into_iter().map(move |w| {
+                f(p).into_iter().map(move |w| {
                     if many && !p.title.is_empty() {
                         format!("{}: {w}", text::plain(&p.title))
                     } else {

@@ -4,10 +4,12 @@
 //! The caller passes only the values that are usable on the axis (finite, and positive on a log axis); what was
 //! left out is counted by the caller. Here:
 //! - values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis) are clamped for the range, counted, and drawn
-//!   clipped at the edge;
+//!   outside the axis;
 //! - a log axis starts at the smallest positive value, unless that lies more than [`FLOOR_DECADES`] decades below
-//!   the 1st percentile of the positive values: then the axis starts at `p₁ · 10^-FLOOR_DECADES` (the *floor*), and
-//!   the values below it are counted and drawn clipped at the bottom. Exact zeros never reach a log axis at all;
+//!   the 1st percentile of the positive values, or more than [`MAX_DECADES`] decades below the largest value
+//!   (f64 round-off, e.g. 10⁻¹⁶ where an error is "exactly" zero, would otherwise take half the axis): then the
+//!   axis starts at the higher of `p₁ · 10^-FLOOR_DECADES` and `max · 10^-MAX_DECADES` (the *floor*), and the
+//!   values below it are counted and fall below the axis (lines run off its bottom edge). Exact zeros never reach a log axis at all;
 //! - a zero-width range (a constant, a single point) is widened: ±5 % of the value (±1 for zero) on a linear
 //!   axis, a factor √10 either way on a log axis; a range narrower than 10⁻⁹ of its magnitude likewise;
 //! - no value at all gives 0–1 (linear) or 1–10 (log), and the report says the axis is empty.
@@ -18,6 +20,17 @@ use super::Scale;
 pub const LIMIT: f64 = 1e300;
 /// A log axis reaches at most this many decades below the 1st percentile of its positive values.
 pub const FLOOR_DECADES: i32 = 2;
+/// A log axis spans at most this many decades below its largest value.
+pub const MAX_DECADES: i32 = 10;
+
+/// Why a log axis got a floor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FloorRule {
+    /// [`FLOOR_DECADES`] below the 1st percentile: a few stray tiny values.
+    Percentile,
+    /// [`MAX_DECADES`] below the largest value: round-off-sized values.
+    DynamicRange,
+}
 /// Narrowest range relative to its magnitude; narrower ranges are widened to this.
 pub const MIN_RELATIVE_WIDTH: f64 = 1e-9;
 
@@ -30,9 +43,9 @@ pub struct AxisReport {
     pub hi: f64,
     /// Values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis), clamped for the range and drawn clipped.
     pub clamped: usize,
-    /// The log axis floor `p₁ · 10^-FLOOR_DECADES` when it applied.
-    pub floor: Option<f64>,
-    /// Positive values below the floor (drawn clipped at the bottom).
+    /// The log axis floor and the rule that set it, when one applied.
+    pub floor: Option<(f64, FloorRule)>,
+    /// Positive values below the floor (they fall below the axis; lines run off its edge).
     pub below_floor: usize,
     /// The range was widened (zero or near-zero width).
     pub widened: bool,
@@ -88,14 +101,24 @@ pub(crate) fn axis_range(
         (rep.lo, rep.hi) = if log { (1.0, 10.0) } else { (0.0, 1.0) };
         return rep;
     }
-    if log && v.len() >= 100 {
-        let k = (v.len() - 1) / 100;
-        let (_, p1, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-        let floor = *p1 * 10f64.powi(-FLOOR_DECADES);
-        if lo < floor {
+    if log {
+        let by_range = (hi * 10f64.powi(-MAX_DECADES), FloorRule::DynamicRange);
+        let by_p1 = if v.len() >= 100 {
+            let k = (v.len() - 1) / 100;
+            let (_, p1, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+            (*p1 * 10f64.powi(-FLOOR_DECADES), FloorRule::Percentile)
+        } else {
+            (0.0, FloorRule::Percentile)
+        };
+        let floor = if by_p1.0 > by_range.0 {
+            by_p1
+        } else {
+            by_range
+        };
+        if lo < floor.0 {
             rep.floor = Some(floor);
-            rep.below_floor = v.iter().filter(|x| **x < floor).count();
-            lo = floor;
+            rep.below_floor = v.iter().filter(|x| **x < floor.0).count();
+            lo = floor.0;
         }
     }
     if log {
@@ -156,7 +179,8 @@ mod tests {
         v.push(1e-17);
         let r = axis_range(&mut v, Scale::Log, None, 0.0);
         assert_eq!(r.below_floor, 1);
-        let floor = r.floor.expect("floor applies");
+        let (floor, rule) = r.floor.expect("floor applies");
+        assert_eq!(rule, FloorRule::Percentile);
         assert!(floor > 5e-5 && floor < 2e-4, "{floor}");
         // Data that genuinely spans many decades keep their range.
         let mut v: Vec<f64> = (0..1000)

@@ -139,6 +139,10 @@ fn prepare<'a>(
             }
             if !(usable(x, xs) && usable(y, ys)) {
                 r.non_positive += 1;
+                // A point left out of a log y axis still spans the x axis (a time axis shows the whole run).
+                if usable(x, xs) && in_window(x) {
+                    xv.push(x);
+                }
                 continue;
             }
             if !in_window(x) {
@@ -191,7 +195,12 @@ fn prepare<'a>(
                 .collect();
             let groups = match p.coincide {
                 Some(tol) if tol > 0.0 && tol.is_finite() => {
-                    let mut seen = HashSet::new();
+                    // Only curves with a label of their own: a family sharing one label (landmark tracks,
+                    // links) is one legend entry and is not compared.
+                    let mut count = std::collections::HashMap::new();
+                    for c in p.curves {
+                        *count.entry(c.label.as_str()).or_insert(0usize) += 1;
+                    }
                     let series: Vec<Option<Series>> = p
                         .curves
                         .iter()
@@ -199,7 +208,7 @@ fn prepare<'a>(
                             let n = n_points(c);
                             let eligible = c.style.dash.is_some()
                                 && !c.label.is_empty()
-                                && seen.insert(c.label.clone())
+                                && count[c.label.as_str()] == 1
                                 && n >= 2;
                             eligible.then(|| Series {
                                 x: &c.x[..n],
