@@ -12,6 +12,7 @@ mod io;
 mod plot;
 mod registry;
 mod slam;
+use edgekf_figure as figure;
 
 use std::fs;
 use std::path::{Path, PathBuf};
