@@ -604,6 +604,9 @@ pub struct PanelReport {
     pub legend: Option<LegendReport>,
     /// The inset, if drawn: its box and position.
     pub inset: Option<(Placement, PxRect)>,
+    /// Every axis text drawn (tick labels, axis titles, panel title) with its pixel box, to check that none
+    /// overlaps another or leaves the image.
+    pub texts: Vec<(String, PxRect)>,
 }
 
 impl PanelReport {
@@ -696,22 +699,23 @@ impl PanelReport {
                 ));
             }
             if let Some((f, rule)) = a.floor {
-                let why = match rule {
-                    FloorRule::Percentile => format!(
-                        "{} × the 1st percentile",
-                        ticks::pow10_label(-range::FLOOR_DECADES)
+                let (n, s) = (a.below_floor, plural(a.below_floor));
+                let msg = match rule {
+                    FloorRule::Strays => format!(
+                        "{n} stray {name} value{s}, more than {} decades below all others, fall{} below the \
+                         axis (it starts at {})",
+                        range::GAP_DECADES,
+                        if n == 1 { "s" } else { "" },
+                        short(f)
                     ),
                     FloorRule::DynamicRange => format!(
-                        "{} × the largest value",
-                        ticks::pow10_label(-range::MAX_DECADES)
+                        "the {name} axis spans at most {} decades below its largest value: {n} smaller \
+                         value{s} fall{} below it (it starts at {})",
+                        range::MAX_DECADES,
+                        if n == 1 { "s" } else { "" },
+                        short(f)
                     ),
                 };
-                let msg = format!(
-                    "{name} axis starts at {} ({why}): {} smaller value{} fall below it",
-                    short(f),
-                    a.below_floor,
-                    plural(a.below_floor)
-                );
                 w.push((false, msg));
             }
             if a.empty && !self.curves.is_empty() {

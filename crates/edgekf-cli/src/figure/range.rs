@@ -5,10 +5,11 @@
 //! left out is counted by the caller. Here:
 //! - values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis) are clamped for the range, counted, and drawn
 //!   outside the axis;
-//! - a log axis starts at the smallest positive value, unless that lies more than [`FLOOR_DECADES`] decades below
-//!   the 1st percentile of the positive values, or more than [`MAX_DECADES`] decades below the largest value
-//!   (f64 round-off, e.g. 10⁻¹⁶ where an error is "exactly" zero, would otherwise take half the axis): then the
-//!   axis starts at the higher of `p₁ · 10^-FLOOR_DECADES` and `max · 10^-MAX_DECADES` (the *floor*), and the
+//! - a log axis starts at the smallest positive value, with two exceptions, the *floor*: stray values (at most
+//!   1 % of them, separated from all the others by a gap of more than [`GAP_DECADES`] decades) are left below
+//!   the axis, which starts at the smallest of the others; and the axis reaches at most [`MAX_DECADES`] decades
+//!   below the largest value (f64 round-off, e.g. 10⁻¹⁶ where an error is "exactly" zero, would otherwise take
+//!   half the axis). Evenly spaced data (t = Δt, 2Δt, … on a log-time axis) have no gap and keep their range. The
 //!   values below it are counted and fall below the axis (lines run off its bottom edge). Exact zeros never reach a log axis at all;
 //! - a zero-width range (a constant, a single point) is widened: ±5 % of the value (±1 for zero) on a linear
 //!   axis, a factor √10 either way on a log axis; a range narrower than 10⁻⁹ of its magnitude likewise;
@@ -18,16 +19,16 @@ use super::Scale;
 
 /// Largest magnitude an axis range reaches (±1e300); beyond it values are clamped.
 pub const LIMIT: f64 = 1e300;
-/// A log axis reaches at most this many decades below the 1st percentile of its positive values.
-pub const FLOOR_DECADES: i32 = 2;
+/// Stray values lie more than this many decades below all other values of a log axis.
+pub const GAP_DECADES: f64 = 2.0;
 /// A log axis spans at most this many decades below its largest value.
 pub const MAX_DECADES: i32 = 10;
 
 /// Why a log axis got a floor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FloorRule {
-    /// [`FLOOR_DECADES`] below the 1st percentile: a few stray tiny values.
-    Percentile,
+    /// At most 1 % of the values, more than [`GAP_DECADES`] below all others.
+    Strays,
     /// [`MAX_DECADES`] below the largest value: round-off-sized values.
     DynamicRange,
 }
@@ -102,19 +103,22 @@ pub(crate) fn axis_range(
         return rep;
     }
     if log {
-        let by_range = (hi * 10f64.powi(-MAX_DECADES), FloorRule::DynamicRange);
-        let by_p1 = if v.len() >= 100 {
-            let k = (v.len() - 1) / 100;
-            let (_, p1, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-            (*p1 * 10f64.powi(-FLOOR_DECADES), FloorRule::Percentile)
-        } else {
-            (0.0, FloorRule::Percentile)
-        };
-        let floor = if by_p1.0 > by_range.0 {
-            by_p1
-        } else {
-            by_range
-        };
+        let mut floor = (hi * 10f64.powi(-MAX_DECADES), FloorRule::DynamicRange);
+        if v.len() >= 100 {
+            // The lowest 1 % (and the next value), sorted: is there a gap wider than GAP_DECADES?
+            let k = v.len() / 100;
+            v.select_nth_unstable_by(k, f64::total_cmp);
+            v[..=k].sort_unstable_by(f64::total_cmp);
+            let gap = (0..k)
+                .rev()
+                .map(|i| (v[i + 1].log10() - v[i].log10(), i))
+                .find(|(g, _)| *g > GAP_DECADES);
+            if let Some((_, i)) = gap {
+                if v[i + 1] > floor.0 {
+                    floor = (v[i + 1], FloorRule::Strays);
+                }
+            }
+        }
         if lo < floor.0 {
             rep.floor = Some(floor);
             rep.below_floor = v.iter().filter(|x| **x < floor.0).count();
@@ -180,8 +184,8 @@ mod tests {
         let r = axis_range(&mut v, Scale::Log, None, 0.0);
         assert_eq!(r.below_floor, 1);
         let (floor, rule) = r.floor.expect("floor applies");
-        assert_eq!(rule, FloorRule::Percentile);
-        assert!(floor > 5e-5 && floor < 2e-4, "{floor}");
+        assert_eq!(rule, FloorRule::Strays);
+        assert!((floor - 1e-3).abs() < 1e-12, "{floor}");
         // Data that genuinely spans many decades keep their range.
         let mut v: Vec<f64> = (0..1000)
             .map(|i| 10f64.powf(-f64::from(i) / 100.0))

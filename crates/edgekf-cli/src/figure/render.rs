@@ -605,6 +605,7 @@ fn panel_report(p: &Prep, lay: Option<&Layout>) -> PanelReport {
         coinciding: p.groups.clone(),
         legend: None,
         inset: None,
+        texts: Vec::new(),
     }
 }
 
@@ -798,10 +799,11 @@ fn draw_panel(
         };
         let lay = layout(area, p, f, column, compact, min_left);
         let mut occ = Occupancy::new(lay.plot);
-        draw_axes(canvas, area, p, &lay, f, compact);
+        let texts = draw_axes(canvas, area, p, &lay, f, compact);
         let vertices = draw_data(canvas, p, &lay, &mut occ);
         canvas.frame(lay.plot, palette::AXIS);
         let mut rep = panel_report(p, Some(&lay));
+        rep.texts = texts;
         for (r, v) in rep.curves.iter_mut().zip(vertices) {
             r.vertices_drawn = v;
         }
@@ -886,8 +888,17 @@ fn draw_panel(
     unreachable!("the third pass always returns")
 }
 
-fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Fonts, compact: bool) {
+/// Draws shades, grid, ticks, tick labels and titles; returns every text drawn with its box.
+fn draw_axes(
+    canvas: &mut Canvas,
+    area: PxRect,
+    p: &Prep,
+    lay: &Layout,
+    f: &Fonts,
+    compact: bool,
+) -> Vec<(String, PxRect)> {
     let pr = lay.plot;
+    let mut boxes = Vec::new();
     // Shades behind everything.
     for s in p.src.shades {
         let (a, b) = (lay.xm.px(s.from), lay.xm.px(s.to));
@@ -929,7 +940,7 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
             canvas.blend(xi, by + k, palette::AXIS, 1.0);
         }
         if let Some(l) = &t.label {
-            put_text(
+            let r = put_text(
                 canvas,
                 l,
                 f.tick,
@@ -940,6 +951,7 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
                 palette::AXIS,
                 false,
             );
+            boxes.push((l.clone(), r));
         }
     }
     for t in &lay.yt {
@@ -953,7 +965,7 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
             canvas.blend(bx - k, yi, palette::AXIS, 1.0);
         }
         if let Some(l) = &t.label {
-            put_text(
+            let r = put_text(
                 canvas,
                 l,
                 f.tick,
@@ -964,10 +976,11 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
                 palette::AXIS,
                 false,
             );
+            boxes.push((l.clone(), r));
         }
     }
     if !p.src.title.is_empty() {
-        put_text(
+        let r = put_text(
             canvas,
             p.src.title,
             f.panel_title,
@@ -978,11 +991,12 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
             Rgb::BLACK,
             false,
         );
+        boxes.push((p.src.title.to_string(), r));
     }
     if !compact {
         let xt = p.x_axis.title();
         if !xt.is_empty() {
-            put_text(
+            let r = put_text(
                 canvas,
                 &xt,
                 f.axis,
@@ -993,10 +1007,11 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
                 Rgb::BLACK,
                 false,
             );
+            boxes.push((xt.clone(), r));
         }
         let yt = p.y_axis.title();
         if !yt.is_empty() {
-            put_text(
+            let r = put_text(
                 canvas,
                 &yt,
                 f.axis,
@@ -1007,8 +1022,10 @@ fn draw_axes(canvas: &mut Canvas, area: PxRect, p: &Prep, lay: &Layout, f: &Font
                 Rgb::BLACK,
                 false,
             );
+            boxes.push((yt.clone(), r));
         }
     }
+    boxes
 }
 
 /// Pixel runs of a curve's usable points (a non-usable point breaks the line).

@@ -198,7 +198,8 @@ pub fn log_ticks(lo: f64, hi: f64, max_labels: usize, px_per_decade: f64) -> Vec
         return Vec::new();
     }
     let (l0, l1) = (lo.log10(), hi.log10());
-    let (d0, d1) = (l0.ceil() as i32, l1.floor() as i32);
+    // A decade within rounding of an end counts as inside (log10(1e-3) is -2.9999999999999996).
+    let (d0, d1) = ((l0 - 1e-9).ceil() as i32, (l1 + 1e-9).floor() as i32);
     let inside = |v: f64| v >= lo * (1.0 - 1e-12) && v <= hi * (1.0 + 1e-12);
     let n_dec = d1 - d0 + 1;
     let max_labels = max_labels.clamp(2, 30);
