@@ -6,9 +6,11 @@
 //!
 //! writes `metric_log.png` (ε with ±1σ bands, log y, log time), `metric_inset.png` (the same on the papers'
 //! linear 0–30 s axis with an inset over the first second), `coincide.png` (five curves equal within 0.1 %),
-//! `paths.png` (ten agents, final links, start/end markers), `inputs.png` (3,000 noisy points, two panels),
-//! `pathological.png` (NaN, ±inf, 1e300, zeros on a log axis) and `text.png` (symbols and kerning), and
-//! prints each figure's warnings.
+//! `coincide_difference.png` (the same with a panel of their differences), `paths.png` (ten agents, final
+//! links, start/end markers), `design.png` (a framework: weights labelled above the links), `inputs.png`
+//! (3,000 noisy points, two panels), `pathological.png` (NaN, ±inf, 1e300, zeros on a log axis), `text.png`
+//! (symbols and kerning) and `kerning.png` (plotters' text above the toolkit's, 3× enlarged), and prints each
+//! figure's warnings.
 
 use std::path::PathBuf;
 
@@ -128,8 +130,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     figures.push((
         "coincide",
-        Figure::single("Random link failures: Procrustes error", p),
+        Figure::single("Random link failures: Procrustes error", p.clone()),
     ));
+    // The same with a panel of the differences that the legend summarises as "coincide within 0.1 %".
+    let groups = p.coinciding();
+    let diff = p
+        .difference_panel(&groups[0])
+        .with_title("differences within the group");
+    let mut f = Figure::new("Random link failures, with the coinciding curves' differences")
+        .with_size(1100, 1000);
+    f.panels = vec![p, diff];
+    figures.push(("coincide_difference", f));
 
     // 4. Paths: ten agents converge to a formation; final links grey, starts hollow, ends filled.
     let n = 10;
@@ -195,6 +206,55 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.push((
         "paths",
         Figure::single("Agent paths, run 0, 0–4 s", p).with_size(900, 860),
+    ));
+
+    // 4b. A framework picture: link width by weight, weight labels above the links, units on the axes.
+    let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m"));
+    p.equal_aspect = true;
+    let hex: Vec<(f64, f64)> = (0..6)
+        .map(|i| {
+            let a = std::f64::consts::TAU * f64::from(i) / 6.0;
+            (a.cos(), a.sin())
+        })
+        .collect();
+    for i in 0..6usize {
+        for j in [(i + 1) % 6, (i + 2) % 6] {
+            let w: f64 = if j == (i + 1) % 6 { 0.8 } else { -0.3 };
+            let (a, b) = (hex[i], hex[j]);
+            let (colour, label) = if w > 0.0 {
+                (palette::SERIES[0], "positive weight (width ∝ |w|)")
+            } else {
+                (palette::SERIES[1], "negative weight")
+            };
+            p.curves.push(
+                Curve::new(label, vec![a.0, b.0], vec![a.1, b.1])
+                    .with_style(Style::line().colour(colour).width(1.0 + 5.0 * w.abs())),
+            );
+            p.labels.push(Label {
+                size: 13.0,
+                ..Label::new(
+                    (a.0 + b.0) / 2.0,
+                    (a.1 + b.1) / 2.0,
+                    format!("{w:+.1}").replace('-', "−"),
+                )
+            });
+        }
+    }
+    let (ax, ay): (Vec<f64>, Vec<f64>) = hex.iter().copied().unzip();
+    p.curves.push(
+        Curve::new("agents", ax, ay)
+            .with_style(Style::markers(Marker::new(Shape::Circle, 14.0)).colour(palette::MARKER)),
+    );
+    for (i, &(x, y)) in hex.iter().enumerate() {
+        p.labels.push(Label {
+            offset: (9.0, -9.0),
+            h: HAlign::Left,
+            ..Label::new(x, y, format!("{i}"))
+        });
+    }
+    figures.push((
+        "design",
+        Figure::single("A hexagon framework: stress weights w_{ij}", p).with_size(800, 780),
     ));
 
     // 5. Control inputs: 3,000 noisy points per curve, two panels.

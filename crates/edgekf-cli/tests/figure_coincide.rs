@@ -72,3 +72,20 @@ fn coinciding_curves_are_drawn_distinguishably() {
         );
     }
 }
+
+#[test]
+fn the_difference_panel_shows_the_relative_differences() {
+    let f = fig(4e-4);
+    let p = &f.panels[0];
+    let groups = p.coinciding();
+    assert_eq!(groups.len(), 1);
+    let d = p.difference_panel(&groups[0]);
+    assert_eq!(d.curves.len(), 4, "one curve per member after the first");
+    // Member k is (1 + 1e-4·k) times the first: its relative difference is 1e-4·k throughout.
+    for (k, c) in d.curves.iter().enumerate() {
+        let want = 1e-4 * (k + 1) as f64;
+        assert!(c.y.iter().all(|v| (v - want).abs() < 1e-12), "{}", c.label);
+    }
+    let (_, rep) = Figure::single("differences", d).draw();
+    assert!(rep.panels[0].coinciding.is_empty());
+}

@@ -357,12 +357,12 @@ fn round_off_sized_values_do_not_take_the_axis() {
     let (_, rep) = fig.draw();
     let y = &rep.panels[0].y;
     // The floor, less the 3 % margin of the axis.
-    assert!(y.lo >= 1e-11 && y.floor.is_some(), "{y:?}");
+    assert!(y.lo >= 1e-13 && y.floor.is_some(), "{y:?}");
     assert_eq!(y.below_floor, 300);
     assert!(rep
         .warnings()
         .iter()
-        .any(|w| w.contains("at most 10 decades below its largest value")));
+        .any(|w| w.contains("at most 12 decades below its largest value")));
 }
 
 #[test]

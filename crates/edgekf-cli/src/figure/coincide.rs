@@ -32,7 +32,7 @@ fn sorted(x: &[f64]) -> bool {
 }
 
 /// Linear interpolation of `(x, y)` at `t` (x ascending), `None` outside or next to a non-finite value.
-fn interp(x: &[f64], y: &[f64], t: f64) -> Option<f64> {
+pub(crate) fn interp(x: &[f64], y: &[f64], t: f64) -> Option<f64> {
     let i = x.partition_point(|v| *v < t);
     if i < x.len() && x[i] == t {
         return y[i].is_finite().then_some(y[i]);

@@ -718,6 +718,17 @@ impl PanelReport {
                 };
                 w.push((false, msg));
             }
+            if let Some(c) = a.ceiling {
+                let (n, s) = (a.above_ceiling, plural(a.above_ceiling));
+                let msg = format!(
+                    "{n} stray {name} value{s}, more than {} decades above all others, lie{} above the axis \
+                     (it ends at {})",
+                    range::GAP_DECADES,
+                    if n == 1 { "s" } else { "" },
+                    short(c)
+                );
+                w.push((true, msg));
+            }
             if a.empty && !self.curves.is_empty() {
                 w.push((true, format!("no finite {name} data to plot")));
             }

@@ -5,12 +5,14 @@
 //! left out is counted by the caller. Here:
 //! - values beyond ±[`LIMIT`] (or below 1/[`LIMIT`] on a log axis) are clamped for the range, counted, and drawn
 //!   outside the axis;
-//! - a log axis starts at the smallest positive value, with two exceptions, the *floor*: stray values (at most
-//!   1 % of them, separated from all the others by a gap of more than [`GAP_DECADES`] decades) are left below
-//!   the axis, which starts at the smallest of the others; and the axis reaches at most [`MAX_DECADES`] decades
-//!   below the largest value (f64 round-off, e.g. 10⁻¹⁶ where an error is "exactly" zero, would otherwise take
-//!   half the axis). Evenly spaced data (t = Δt, 2Δt, … on a log-time axis) have no gap and keep their range. The
-//!   values below it are counted and fall below the axis (lines run off its bottom edge). Exact zeros never reach a log axis at all;
+//! - on a log axis, *stray* values — at most 1 % of the values, separated from all the others by a gap of more
+//!   than [`GAP_DECADES`] decades — do not set the range: a single 1e300 from a diverging run does not squash
+//!   the rest into one pixel row, nor a few 10⁻¹⁷ round-off values stretch the axis. They lie above (the
+//!   *ceiling*) or below (the *floor*) the axis; lines run off its edge. Evenly spaced data (t = Δt, 2Δt, … on a
+//!   log-time axis) have no such gap and keep their range;
+//! - a log axis also reaches at most [`MAX_DECADES`] decades below its largest (non-stray) value: f64 round-off,
+//!   e.g. 10⁻¹⁶ where an error is "exactly" zero, would otherwise take half the axis. Exact zeros never reach a
+//!   log axis at all (the caller leaves them out);
 //! - a zero-width range (a constant, a single point) is widened: ±5 % of the value (±1 for zero) on a linear
 //!   axis, a factor √10 either way on a log axis; a range narrower than 10⁻⁹ of its magnitude likewise;
 //! - no value at all gives 0–1 (linear) or 1–10 (log), and the report says the axis is empty.
@@ -22,7 +24,7 @@ pub const LIMIT: f64 = 1e300;
 /// Stray values lie more than this many decades below all other values of a log axis.
 pub const GAP_DECADES: f64 = 2.0;
 /// A log axis spans at most this many decades below its largest value.
-pub const MAX_DECADES: i32 = 10;
+pub const MAX_DECADES: i32 = 12;
 
 /// Why a log axis got a floor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,6 +50,10 @@ pub struct AxisReport {
     pub floor: Option<(f64, FloorRule)>,
     /// Positive values below the floor (they fall below the axis; lines run off its edge).
     pub below_floor: usize,
+    /// Top of a log axis set below stray large values, when it applied.
+    pub ceiling: Option<f64>,
+    /// Stray values above the ceiling (they lie above the axis).
+    pub above_ceiling: usize,
     /// The range was widened (zero or near-zero width).
     pub widened: bool,
     /// No usable value: the default range is shown.
@@ -103,10 +109,22 @@ pub(crate) fn axis_range(
         return rep;
     }
     if log {
+        let k = v.len() / 100;
+        if k > 0 {
+            // The highest 1 % (and the next value below), sorted: a gap wider than GAP_DECADES?
+            let n = v.len();
+            v.select_nth_unstable_by(n - 1 - k, f64::total_cmp);
+            v[n - 1 - k..].sort_unstable_by(f64::total_cmp);
+            let gap = (n - 1 - k..n - 1).find(|&i| v[i + 1].log10() - v[i].log10() > GAP_DECADES);
+            if let Some(i) = gap {
+                rep.ceiling = Some(v[i]);
+                rep.above_ceiling = n - 1 - i;
+                hi = v[i];
+            }
+        }
         let mut floor = (hi * 10f64.powi(-MAX_DECADES), FloorRule::DynamicRange);
-        if v.len() >= 100 {
-            // The lowest 1 % (and the next value), sorted: is there a gap wider than GAP_DECADES?
-            let k = v.len() / 100;
+        if k > 0 {
+            // The lowest 1 % (and the next value), sorted: a gap wider than GAP_DECADES?
             v.select_nth_unstable_by(k, f64::total_cmp);
             v[..=k].sort_unstable_by(f64::total_cmp);
             let gap = (0..k)
@@ -192,6 +210,34 @@ mod tests {
             .collect();
         let r = axis_range(&mut v, Scale::Log, None, 0.0);
         assert!(r.floor.is_none() && r.lo < 1.1e-9);
+        // Evenly spaced values (a log-time axis) have no gap: the first steps stay.
+        let mut v: Vec<f64> = (1..=30_000).map(|k| f64::from(k) * 1e-3).collect();
+        let r = axis_range(&mut v, Scale::Log, None, 0.0);
+        assert!(r.floor.is_none() && r.lo <= 1e-3 * (1.0 + 1e-12), "{r:?}");
+    }
+
+    #[test]
+    fn round_off_next_to_order_one_values_stays_below_the_axis() {
+        // 30 % of the values are round-off (too many to be strays): at most MAX_DECADES below the top.
+        let mut v: Vec<f64> = (0..1000)
+            .map(|i| if i < 300 { 1e-16 } else { 0.3 })
+            .collect();
+        let r = axis_range(&mut v, Scale::Log, None, 0.0);
+        assert_eq!(r.floor.map(|f| f.1), Some(FloorRule::DynamicRange));
+        assert_eq!(r.below_floor, 300);
+        assert!((r.lo / 3e-13 - 1.0).abs() < 1e-9, "{r:?}");
+    }
+
+    #[test]
+    fn a_stray_huge_value_does_not_squash_a_log_axis() {
+        let mut v: Vec<f64> = (1..=1000).map(|k| f64::from(k) * 1e-3).collect();
+        v.push(1e300);
+        let r = axis_range(&mut v, Scale::Log, None, 0.0);
+        assert_eq!((r.ceiling, r.above_ceiling), (Some(1.0), 1));
+        assert!(
+            r.floor.is_none() && (r.hi - 1.0).abs() < 1e-12 && r.lo <= 1e-3 * (1.0 + 1e-12),
+            "{r:?}"
+        );
     }
 
     #[test]

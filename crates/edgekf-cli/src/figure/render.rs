@@ -1238,3 +1238,65 @@ fn draw_inset(canvas: &mut Canvas, r: PxRect, p: &Prep, inset: &Inset) {
     );
     canvas.frame(r, Rgb(150, 150, 150));
 }
+
+impl Panel {
+    /// The groups of coinciding curves that this panel's legend names when drawn (the same detection).
+    pub fn coinciding(&self) -> Vec<super::CoincideGroup> {
+        prepare(
+            self.into(),
+            self.x_axis.clone(),
+            self.y_axis.clone(),
+            None,
+            None,
+        )
+        .groups
+    }
+
+    /// A panel of the differences between the members of `group` and its first member, interpolated onto the
+    /// first member's x: relative, `(yᵢ − y₀)/|y₀|`, for a log y axis; in the y axis' unit for a linear one.
+    /// Members keep their colours; draw it under the panel to show *how* equal coinciding curves are.
+    pub fn difference_panel(&self, group: &super::CoincideGroup) -> Panel {
+        let prep = prepare(
+            self.into(),
+            self.x_axis.clone(),
+            self.y_axis.clone(),
+            None,
+            None,
+        );
+        let relative = self.y_axis.scale == Scale::Log;
+        let Some(&first) = group.members.first() else {
+            return Panel::new(self.x_axis.clone(), Axis::linear("difference", ""));
+        };
+        let base = &self.curves[first];
+        let n0 = n_points(base);
+        let y_axis = if relative {
+            Axis::linear(format!("relative difference to {}", base.label), "")
+        } else {
+            Axis::linear(
+                format!("difference to {}", base.label),
+                self.y_axis.unit.clone(),
+            )
+        };
+        let mut p = Panel::new(self.x_axis.clone(), y_axis);
+        p.coincide_tolerance = None;
+        for &i in &group.members[1..] {
+            let c = &self.curves[i];
+            let n = n_points(c);
+            let d: Vec<f64> = (0..n0)
+                .map(|k| {
+                    let (x, y0) = (base.x[k], base.y[k]);
+                    match coincide::interp(&c.x[..n], &c.y[..n], x) {
+                        Some(y) if relative => (y - y0) / y0.abs(),
+                        Some(y) => y - y0,
+                        None => f64::NAN,
+                    }
+                })
+                .collect();
+            p.curves.push(
+                Curve::new(c.label.clone(), base.x[..n0].to_vec(), d)
+                    .with_style(Style::line().colour(prep.colours[i]).width(1.2)),
+            );
+        }
+        p
+    }
+}
