@@ -1,7 +1,7 @@
 //! The pixel layer: an RGB canvas, anti-aliased coverage buffers (strokes, dashes, markers, bands), clipping of
 //! far-away coordinates in `f64` before anything becomes an integer, and per-column thinning of long series.
 //!
-//! Everything is drawn first into a [`Coverage`] buffer (per pixel the maximum coverage of one colour) and then
+//! Everything is drawn first into a coverage buffer (per pixel the maximum coverage of one colour) and then
 //! composited once, so overlapping segments of one curve do not darken their joints and a translucent band is
 //! blended exactly once per pixel.
 
