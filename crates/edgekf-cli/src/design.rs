@@ -293,7 +293,8 @@ fn plot_framework(
         y1 = y1.max(y);
     }
     let pad = 0.08 * (x1 - x0).max(y1 - y0).max(1e-9);
-    let root = BitMapBackend::new(path, (900, 900)).into_drawing_area();
+    let root = crate::figure::backend::KernedText::new(BitMapBackend::new(path, (900, 900)))
+        .into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
     let title = format!(
         "{} — {} design, {} links, λ_max/λ_gap = {:.1}{}",

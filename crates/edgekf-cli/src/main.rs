@@ -18,6 +18,7 @@ mod plot;
 mod registry;
 mod slam;
 mod summary;
+use edgekf_figure as figure;
 
 use std::fs;
 use std::path::{Path, PathBuf};
