@@ -13,6 +13,11 @@
   metrics such as procrustes).
 - the consistency ratio mean eps^2 / cov_trace per file.
 
+Several seeds: pass comma-separated lists, e.g. ``compare.py rs1/metrics.csv,rs2/metrics.csv,...
+py1/metrics.csv,py2/metrics.csv,...``: the windowed means are averaged over the files of each side
+and the standard errors come from the spread across the files (seeds), which needs no assumption
+about correlation in time.
+
 Usage: python compare.py RUST/metrics.csv PY/metrics.csv [--t0 15 --t1 30 --batches 10]
 """
 from __future__ import annotations
@@ -63,6 +68,8 @@ def main(argv=None):
     ap.add_argument("--proc-t0", type=float, default=25.0)
     ap.add_argument("--batches", type=int, default=10)
     a = ap.parse_args(argv)
+    if "," in a.a or "," in a.b:
+        return multi(a)
     A, B = load(a.a), load(a.b)
     SB = steady_se(a.b)
     ests = [e for e, m in A if m == "cov_trace" and (e, m) in B]
@@ -95,6 +102,24 @@ def main(argv=None):
             vc = window(X[(e, "cov_trace")], a.t0, a.t1)
             out.append(sum(ve) / sum(vc))
         print(f"  {e:6s} {out[0]:.4f} | {out[1]:.4f}")
+
+
+def multi(a):
+    fa, fb = a.a.split(","), a.b.split(",")
+    As, Bs = [load(f) for f in fa], [load(f) for f in fb]
+    ests = [e for e, m in As[0] if m == "cov_trace" and (e, m) in Bs[0]]
+    print(f"{len(fa)} file(s) A vs {len(fb)} file(s) B; SE from the spread across files")
+    for met, t0 in (("est_error_sq", a.t0), ("est_error", a.t0), ("procrustes", a.proc_t0)):
+        print(f"{met}: steady mean over {t0}-{a.t1} s, A | B | z")
+        for e in ests:
+            va = [sum(window(X[(e, met)], t0, a.t1)) / len(window(X[(e, met)], t0, a.t1)) for X in As]
+            vb = [sum(window(X[(e, met)], t0, a.t1)) / len(window(X[(e, met)], t0, a.t1)) for X in Bs]
+            ma, mb = sum(va) / len(va), sum(vb) / len(vb)
+            var = lambda v, m: sum((x - m) ** 2 for x in v) / (len(v) - 1) / len(v) if len(v) > 1 else 0.0
+            sea, seb = math.sqrt(var(va, ma)), math.sqrt(var(vb, mb))
+            z = (ma - mb) / math.sqrt(sea ** 2 + seb ** 2)
+            print(f"  {e:6s} {ma:.5e} ({sea:.1e}) | {mb:.5e} ({seb:.1e}) | z = {z:+.2f}"
+                  f"  (B/A - 1 = {mb / ma - 1:+.2%})")
 
 
 if __name__ == "__main__":
