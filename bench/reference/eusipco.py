@@ -15,10 +15,10 @@ Conventions (DESIGN.md; thesis Algorithms 5-7): directed edge e = (i, j) in inci
 (edgekf ``control.rs``): followers ``u_i = -c sum_j l_ij zhat_ij``; leaders the distance law
 ``u_i = -k sum_{j leader} (|zhat_ij|^2 - d_ij^2) zhat_ij`` on their leader-leader edges only.
 
-Layout: every batch is ``(rows, lanes * runs)``: one row per state component (edge-major,
-``e * D + a``; agent-major ``i * D + a`` for positions), and the columns hold the runs of every
-estimator ("lane") side by side, so the closed-loop parts shared by all estimators (edges from
-positions, measurements, control, motion) are one NumPy call for all lanes and runs.  Each
+Layout: every batch is ``(lanes, rows, runs)``: one lane per estimator, one row per state
+component (edge-major ``e * D + a``; agent-major ``i * D + a`` for positions), the runs innermost,
+so the closed-loop parts shared by all estimators (measurements, control, motion) are one NumPy
+call for all lanes and runs, and each filter works on its own contiguous lane.  Each
 filter's gain depends only on the model, so it is computed once per step (and frozen, like the
 Rust engine, once the covariance has converged to rounding level) and applied to all runs with one
 (batched) matmul.
