@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Result;
 use edgekf::scenario::{EstimatorEntry, ScenarioSpec};
 
-use crate::{registry, Overrides};
+use crate::Overrides;
+use edgekf::reproductions as registry;
 
 /// Options of `edgekf bench`.
 #[derive(clap::Args, Debug)]

@@ -15,7 +15,6 @@ mod bench;
 mod design;
 mod io;
 mod plot;
-mod registry;
 mod slam;
 mod summary;
 use edgekf_figure as figure;
@@ -27,6 +26,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
+use edgekf::reproductions as registry;
 use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Observer, Outcome, Results};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};

@@ -61,10 +61,15 @@ fn minimal(sc: &Scenario) -> f64 {
     let leader = |i: usize| fw.leaders().contains(&i);
     let d2: Vec<f64> = edges
         .iter()
-        .map(|&(i, j)| (0..D).map(|a| (fw.point(i)[a] - fw.point(j)[a]).powi(2)).sum())
+        .map(|&(i, j)| {
+            (0..D)
+                .map(|a| (fw.point(i)[a] - fw.point(j)[a]).powi(2))
+                .sum()
+        })
         .collect();
-    let mut rngs: Vec<Xoshiro256PlusPlus> =
-        (0..runs).map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64)).collect();
+    let mut rngs: Vec<Xoshiro256PlusPlus> = (0..runs)
+        .map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64))
+        .collect();
     let mut z = vec![0.0; nd * runs];
     for (r, rng) in rngs.iter_mut().enumerate() {
         for a in 0..nd {
@@ -74,17 +79,20 @@ fn minimal(sc: &Scenario) -> f64 {
     let q: Vec<Mat<D>> = (0..me)
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_q(e, e)[(a, b)]))
         .collect();
-    let w: Vec<Mat<D>> = m
-        .r
-        .iter()
-        .map(|r| Mat::<D>::from_fn(|a, b| r[(a, b)] / t))
-        .collect();
+    let w: Vec<Mat<D>> =
+        m.r.iter()
+            .map(|r| Mat::<D>::from_fn(|a, b| r[(a, b)] / t))
+            .collect();
     let mut sig: Vec<Mat<D>> = (0..me)
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_p0(e, e)[(a, b)]))
         .collect();
     let mut frozen = vec![false; me];
     let mut gain = vec![[0.0; 4]; me];
-    let (mut eta, mut xi, mut wv) = (vec![0.0; md * runs], vec![0.0; nd * runs], vec![0.0; nd * runs]);
+    let (mut eta, mut xi, mut wv) = (
+        vec![0.0; md * runs],
+        vec![0.0; nd * runs],
+        vec![0.0; nd * runs],
+    );
     let (mut xh, mut u) = (vec![0.0; md * runs], vec![0.0; nd * runs]);
     let mut y = vec![0.0; md * runs];
     let mut check = 0.0;
@@ -191,7 +199,12 @@ fn main() {
     let c = minimal(&sc);
     let base = per(t.elapsed().as_secs_f64(), &sc, 1);
     println!("minimal SoA loop (rkf)       {base:7.1}   (checksum {c:.3e})");
-    for set in [&["rkf"][..], &["oracle"], &["rkf-ar"], &["none", "mle", "rkf", "jrkf", "crkf"]] {
+    for set in [
+        &["rkf"][..],
+        &["oracle"],
+        &["rkf-ar"],
+        &["none", "mle", "rkf", "jrkf", "crkf"],
+    ] {
         let sc = scenario(set, runs, steps);
         let t = Instant::now();
         pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))

@@ -13,5 +13,6 @@ pub mod graph;
 pub mod linalg;
 pub mod metrics;
 pub mod noise;
+pub mod reproductions;
 pub mod scenario;
 pub mod sim;

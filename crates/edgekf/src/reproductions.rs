@@ -1,7 +1,8 @@
-//! The shipped scenarios and the paper figures they reproduce.
+//! The shipped scenarios and the paper figures they reproduce (`edgekf reproduce`).
 //!
 //! Several figures come from one simulation (e.g. thesis Figs 4.9–4.11); `reproduce` runs each
-//! scenario file once and draws every requested figure from it.
+//! scenario file once and draws every requested figure from it. The scenario texts are embedded
+//! at build time, so the reproductions work from any directory.
 
 /// One reproducible figure.
 pub struct Entry {
@@ -162,4 +163,57 @@ pub const ENTRIES: &[Entry] = &[
 /// Looks a name up.
 pub fn find(name: &str) -> Option<&'static Entry> {
     ENTRIES.iter().find(|e| e.name == name)
+}
+
+impl Entry {
+    /// Whether it is a study of the distributed SLAM observer (`kind = "slam"`, its own crate).
+    pub fn is_slam(&self) -> bool {
+        self.file.starts_with("slam-")
+    }
+
+    /// The simulation's name: the scenario file without `.toml` (figures that share a
+    /// simulation share it).
+    pub fn simulation(&self) -> &'static str {
+        self.file.strip_suffix(".toml").unwrap_or(self.file)
+    }
+
+    /// The checked scenario of a filter study.
+    ///
+    /// # Errors
+    /// A message if the shipped text does not parse or check (a bug: tests check every entry),
+    /// or for a SLAM study.
+    pub fn scenario(&self) -> Result<crate::scenario::Scenario, String> {
+        if self.is_slam() {
+            return Err(format!("{} is a SLAM study", self.name));
+        }
+        let spec: crate::scenario::ScenarioSpec =
+            toml::from_str(self.text).map_err(|e| format!("{}: {e}", self.file))?;
+        crate::scenario::Scenario::from_spec(&spec, None).map_err(|e| format!("{}: {e}", self.file))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_filter_reproduction_checks_and_names_follow_the_contract() {
+        for e in ENTRIES {
+            // `<source>-fig<number>`, or a plain descriptive name for a study that is no
+            // paper's figure (DESIGN.md).
+            if let Some((source, _)) = e.name.split_once("-fig") {
+                assert!(
+                    ["eusipco", "thesis", "garkf", "slam"].contains(&source),
+                    "{}",
+                    e.name
+                );
+            }
+            if !e.is_slam() {
+                let sc = e.scenario().unwrap();
+                for p in e.plots {
+                    assert!(sc.plots().iter().any(|q| q.file() == *p), "{}: {p}", e.name);
+                }
+            }
+        }
+    }
 }
