@@ -203,6 +203,14 @@ enum Covs<const D: usize> {
     PerRun(EdgeBank<D>),
 }
 
+/// Per-step scratch of the per-run path (sized once).
+#[derive(Debug, Clone)]
+struct Scratch {
+    lost: Vec<bool>,
+    observed: Vec<bool>,
+    inc: Vec<f64>,
+}
+
 /// The RKF on every directed edge.
 #[derive(Debug, Clone)]
 pub struct Rkf<const D: usize> {
@@ -219,6 +227,7 @@ pub struct Rkf<const D: usize> {
     /// Past node inputs, newest first: `hist[l]` holds `u_{k−1−l}` (ND × runs each); only for
     /// `rkf-ar`.
     hist: Vec<Vec<f64>>,
+    scratch: Scratch,
     breakdown: Option<Breakdown>,
 }
 
@@ -274,6 +283,11 @@ impl<const D: usize> Rkf<D> {
             coeffs,
             extra,
             hist,
+            scratch: Scratch {
+                lost: vec![false; runs],
+                observed: vec![true; runs],
+                inc: vec![0.0; D * runs],
+            },
             breakdown: None,
         }
     }
@@ -367,49 +381,72 @@ impl<const D: usize> Rkf<D> {
 
     fn step_per_run(&mut self, s: &Step<'_>) {
         let runs = self.runs;
+        let dt = self.dt;
         let p_fail = match self.input {
             Input::Ar { p_fail } => p_fail,
             _ => 0.0,
         };
-        let mut failed = None;
-        for e in 0..self.edges.len() {
-            let (i, j) = self.edges[e];
+        let Scratch {
+            lost,
+            observed,
+            inc,
+        } = &mut self.scratch;
+        let Covs::PerRun(bank) = &mut self.covs else {
+            unreachable!("per-run path")
+        };
+        for (e, &(i, j)) in self.edges.iter().enumerate() {
+            // Faults of this edge, then the prediction increments `Δt (u^i − û^j)` per run.
             for r in 0..runs {
-                let observed = s.faults.observed(e, r);
-                let arrives = s.faults.input_arrives(e, r, p_fail);
-                let (inc, extra) = match (self.input, arrives) {
-                    (Input::Zero, _) => (
-                        std::array::from_fn(|a| self.dt * s.u_prev[(i * D + a) * runs + r]),
-                        None,
-                    ),
-                    (_, true) => (std::array::from_fn(|a| s.du[(e * D + a) * runs + r]), None),
-                    (Input::Known, false) => (
-                        std::array::from_fn(|a| self.dt * s.u_prev[(i * D + a) * runs + r]),
-                        None,
-                    ),
-                    (Input::Ar { .. }, false) => (
-                        ar_increment_of::<D>(&self.coeffs, &self.hist, self.dt, runs, i, j, r),
-                        Some(self.extra),
-                    ),
-                };
-                let Covs::PerRun(bank) = &mut self.covs else {
-                    unreachable!("per-run path")
-                };
-                if bank
-                    .covariance_step(e, r, &self.q[e], &self.w[e], extra.as_ref(), observed)
-                    .is_err()
-                {
-                    failed = Some(e);
-                    break;
+                observed[r] = s.faults.observed(e, r);
+                lost[r] = !s.faults.input_arrives(e, r, p_fail);
+            }
+            for a in 0..D {
+                let out = &mut inc[a * runs..(a + 1) * runs];
+                let du = &s.du[(e * D + a) * runs..(e * D + a + 1) * runs];
+                let ui = &s.u_prev[(i * D + a) * runs..(i * D + a + 1) * runs];
+                match self.input {
+                    Input::Zero => {
+                        for (o, u) in out.iter_mut().zip(ui) {
+                            *o = dt * u;
+                        }
+                    }
+                    Input::Known => {
+                        for r in 0..runs {
+                            out[r] = if lost[r] { dt * ui[r] } else { du[r] };
+                        }
+                    }
+                    Input::Ar { .. } => {
+                        for r in 0..runs {
+                            out[r] = if lost[r] {
+                                let mut uj = 0.0;
+                                for (l, c) in self.coeffs.iter().enumerate() {
+                                    uj += c[a] * self.hist[l + 1][(j * D + a) * runs + r];
+                                }
+                                dt * (self.hist[0][(i * D + a) * runs + r] - uj)
+                            } else {
+                                du[r]
+                            };
+                        }
+                    }
                 }
-                bank.mean_step(e, r, &inc, s.y);
             }
-            if failed.is_some() {
-                break;
+            // `rkf`/`rkf-zero` add no covariance for a lost input (no model of it).
+            if !matches!(self.input, Input::Ar { .. }) {
+                lost.fill(false);
             }
-        }
-        if let Some(e) = failed {
-            self.fail(e);
+            if bank
+                .covariance_step_all(e, &self.q[e], &self.w[e], &self.extra, lost, observed)
+                .is_err()
+            {
+                let (i, j) = self.edges[e];
+                self.breakdown.get_or_insert(Breakdown {
+                    what: format!(
+                        "the innovation covariance of edge ({i}, {j}) is not positive definite"
+                    ),
+                });
+                return;
+            }
+            bank.mean_step_all(e, inc, s.y);
         }
     }
 }
