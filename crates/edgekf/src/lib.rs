@@ -5,6 +5,7 @@
 // Index loops mirror the equations (agents, edges, dimensions) more clearly than iterator chains.
 #![allow(clippy::needless_range_loop)]
 
+pub mod ca;
 pub mod control;
 pub mod design;
 pub mod estimate;
@@ -13,5 +14,6 @@ pub mod graph;
 pub mod linalg;
 pub mod metrics;
 pub mod noise;
+pub mod pcrb;
 pub mod scenario;
 pub mod sim;
