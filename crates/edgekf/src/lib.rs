@@ -15,5 +15,6 @@ pub mod linalg;
 pub mod metrics;
 pub mod noise;
 pub mod pcrb;
+pub mod ral;
 pub mod scenario;
 pub mod sim;
