@@ -5,6 +5,7 @@
 // Index loops mirror the equations (agents, edges, dimensions) more clearly than iterator chains.
 #![allow(clippy::needless_range_loop)]
 
+pub mod affine_laws;
 pub mod ca;
 pub mod control;
 pub mod design;

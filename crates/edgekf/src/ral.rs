@@ -217,6 +217,9 @@ pub enum RalError {
         /// D.
         dim: usize,
     },
+    /// The eigenvalues of the consensus matrix did not converge.
+    #[error("the eigenvalues of the consensus matrix did not converge")]
+    Eigen,
     /// The linearised normal matrix of a covariance is singular (a degenerate estimate, e.g.
     /// scale 0).
     #[error("the covariance of the {variant:?} RAL is undefined (singular normal matrix)")]
@@ -693,11 +696,14 @@ pub fn consensus_matrix(
 /// Whether the consensus step size `eps` is stable for the functional graph (see
 /// [`consensus_matrix`] for the arguments), and the bound.
 ///
+/// # Errors
+/// [`RalError::Eigen`] if the eigenvalues of a directed graph's matrix do not converge.
+///
 /// ```
 /// use edgekf::ral::{consensus_stability, InfeasibleRal};
 /// // Three agents in a triangle, all RALs feasible: M = L + 3I has eigenvalues 3, 6, 6.
 /// let edges = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
-/// let s = consensus_stability(3, &edges, &[true; 3], InfeasibleRal::Masked, 0.3);
+/// let s = consensus_stability(3, &edges, &[true; 3], InfeasibleRal::Masked, 0.3).unwrap();
 /// assert!((s.eps_bound - 2.0 / 6.0).abs() < 1e-12 && s.stable);
 /// ```
 pub fn consensus_stability(
@@ -706,7 +712,7 @@ pub fn consensus_stability(
     ral_feasible: &[bool],
     mode: InfeasibleRal,
     eps: f64,
-) -> ConsensusStability {
+) -> Result<ConsensusStability, RalError> {
     let m = consensus_matrix(agents, edges, ral_feasible, mode);
     let symmetric = (0..agents).all(|i| (0..i).all(|j| m[(i, j)] == m[(j, i)]));
     let eig: Vec<(f64, f64)> = if symmetric {
@@ -716,10 +722,7 @@ pub fn consensus_stability(
             .map(|&v| (v, 0.0))
             .collect()
     } else {
-        m.complex_eigenvalues()
-            .iter()
-            .map(|c| (c.re, c.im))
-            .collect()
+        crate::affine_laws::eigenvalues_general(&m).ok_or(RalError::Eigen)?
     };
     let scale = eig.iter().map(|&(re, im)| re.hypot(im)).fold(0.0, f64::max);
     let tol = 1e-12 * scale.max(1.0);
@@ -734,12 +737,12 @@ pub fn consensus_stability(
         }
         radius = radius.max((1.0 - eps * re).hypot(eps * im));
     }
-    ConsensusStability {
+    Ok(ConsensusStability {
         lambda_max: scale,
         eps_bound: bound,
         spectral_radius: radius,
         stable: radius < 1.0,
-    }
+    })
 }
 
 /// The local geometry of agent i's functional neighbourhood for Lemma 1 / Theorem 1: the rows
@@ -1318,14 +1321,16 @@ mod tests {
     fn consensus_step_size_bound_hexagon_and_dense_50() {
         let eps = 0.08;
         let (n, edges) = hexagon_edges();
-        let hex = consensus_stability(n, &edges, &vec![true; n], InfeasibleRal::Masked, eps);
+        let hex =
+            consensus_stability(n, &edges, &vec![true; n], InfeasibleRal::Masked, eps).unwrap();
         eprintln!(
             "hexagon: λ_max = {:.4}, ε < {:.5}, ρ(I − 0.08 M) = {:.4}",
             hex.lambda_max, hex.eps_bound, hex.spectral_radius
         );
         assert!(hex.stable && eps < hex.eps_bound);
         // Literal mode counts every RAL input: the same M when all are feasible.
-        let lit = consensus_stability(n, &edges, &vec![false; n], InfeasibleRal::Literal, eps);
+        let lit =
+            consensus_stability(n, &edges, &vec![false; n], InfeasibleRal::Literal, eps).unwrap();
         assert!((lit.lambda_max - hex.lambda_max).abs() < 1e-12);
         // Dense 50: the complete graph (Fig. 13's dense design keeps ≈ 47.8 of 49 neighbours).
         let n50 = 50;
@@ -1333,7 +1338,8 @@ mod tests {
             .flat_map(|i| (0..n50).filter(move |&j| j != i).map(move |j| (i, j)))
             .collect();
         let dense =
-            consensus_stability(n50, &complete, &vec![true; n50], InfeasibleRal::Masked, eps);
+            consensus_stability(n50, &complete, &vec![true; n50], InfeasibleRal::Masked, eps)
+                .unwrap();
         // K_50: L has eigenvalues 0 and 50, M = L + 50 I has 50 and 100: ε < 0.02.
         assert!((dense.lambda_max - 100.0).abs() < 1e-9 && (dense.eps_bound - 0.02).abs() < 1e-12);
         assert!(!dense.stable);
@@ -1349,7 +1355,7 @@ mod tests {
         }
         let degree = 2.0 * links.len() as f64 / n50 as f64;
         let e: Vec<(usize, usize)> = links.iter().flat_map(|&(i, j)| [(i, j), (j, i)]).collect();
-        let d = consensus_stability(n50, &e, &vec![true; n50], InfeasibleRal::Masked, eps);
+        let d = consensus_stability(n50, &e, &vec![true; n50], InfeasibleRal::Masked, eps).unwrap();
         eprintln!(
             "dense 50 (mean degree {degree:.1}): λ_max = {:.3}, ε < {:.5}, ρ(I − 0.08 M) = {:.3}",
             d.lambda_max, d.eps_bound, d.spectral_radius
@@ -1365,7 +1371,7 @@ mod tests {
         let (n, mut edges) = hexagon_edges();
         edges.retain(|&(i, j)| !((i + 2 * j) % 7 == 0 && i > j));
         let feasible: Vec<bool> = (0..n).map(|i| i % 4 != 1).collect();
-        let s = consensus_stability(n, &edges, &feasible, InfeasibleRal::Masked, 0.0);
+        let s = consensus_stability(n, &edges, &feasible, InfeasibleRal::Masked, 0.0).unwrap();
         let target = Matrix2::new(1.3, 0.2, -0.1, 0.7);
         for (factor, converges) in [(0.97, true), (1.03, false)] {
             let eps = s.eps_bound * factor;
