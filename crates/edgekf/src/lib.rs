@@ -13,6 +13,7 @@ pub mod estimate;
 pub mod framework;
 pub mod graph;
 pub mod linalg;
+pub mod maneuver;
 pub mod metrics;
 pub mod noise;
 pub mod pcrb;
