@@ -1080,10 +1080,7 @@ mod tests {
         let model = CaModel::<2>::new(0.01, 1.0).unwrap();
         let sol = riccati_fixed_point(&model, &paper_r()).unwrap();
         let mut b = CaBatch::<2>::new(8, &DMatrix::identity(6, 6), &[0.0; 6]).unwrap();
-        let rt: Vec<f64> = [0.01, 0.003, 0.01]
-            .iter()
-            .flat_map(|v| std::iter::repeat_n(*v, 8))
-            .collect();
+        let rt: Vec<f64> = [0.01, 0.003, 0.01].iter().flat_map(|v| [*v; 8]).collect();
         let mask = vec![true; 8];
         for _ in 0..20_000 {
             b.predict_cov(&model);
