@@ -1157,6 +1157,67 @@ mod tests {
     }
 
     #[test]
+    #[ignore = "report: kernel timing, minimum over repetitions (robust on a shared machine)"]
+    fn report_kernel_timing() {
+        // Criterion's wall-clock means are inflated when other jobs share the cores; the
+        // minimum over many short repetitions approximates an uncontended core. Run with
+        // `cargo test --release` semantics (the test profile is opt-level 3).
+        let model = CaModel::<2>::new(0.01, 1.0).unwrap();
+        for runs in [64usize, 1024] {
+            for lambda in [1.0, 0.4, 0.0] {
+                let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+                let steps = 64;
+                let rts: Vec<Vec<f64>> = (0..steps)
+                    .map(|_| {
+                        (0..3 * runs)
+                            .map(|k| {
+                                let s = rng.random_range(1.0..3.0);
+                                if k / runs == 1 {
+                                    0.003 * s
+                                } else {
+                                    0.01 * s
+                                }
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let masks: Vec<Vec<bool>> = (0..steps)
+                    .map(|_| (0..runs).map(|_| rng.random_bool(lambda)).collect())
+                    .collect();
+                let y = vec![0.5; 2 * runs];
+                let mut b = CaBatch::<2>::new(runs, &DMatrix::identity(6, 6), &[0.0; 6]).unwrap();
+                let (mut tp, mut tc, mut tm) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+                for _ in 0..300 {
+                    let t = std::time::Instant::now();
+                    for _ in 0..steps {
+                        b.predict_cov(&model);
+                    }
+                    tp = tp.min(t.elapsed().as_secs_f64());
+                    let t = std::time::Instant::now();
+                    for k in 0..steps {
+                        b.correct_cov(&rts[k], &masks[k]);
+                    }
+                    tc = tc.min(t.elapsed().as_secs_f64());
+                    let t = std::time::Instant::now();
+                    for k in 0..steps {
+                        b.predict_mean(&model);
+                        b.correct_mean(&y, &masks[k]);
+                    }
+                    tm = tm.min(t.elapsed().as_secs_f64());
+                }
+                let per = 1e9 / (runs * steps) as f64;
+                eprintln!(
+                    "runs {runs}, λ {lambda}: ns per edge-run-step: predict Λ {:.1}, \
+                     correct Λ {:.1}, mean predict + correct {:.1}",
+                    tp * per,
+                    tc * per,
+                    tm * per
+                );
+            }
+        }
+    }
+
+    #[test]
     #[ignore = "report: prints the short-form vs Joseph table (≈ 10 s)"]
     fn report_short_form_vs_joseph() {
         let id = DMatrix::<f64>::identity(6, 6);
