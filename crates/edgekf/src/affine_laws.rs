@@ -30,7 +30,8 @@
 //! neighbours applied at the previous step, `ż_j ≈ u_{j,k−1}`; with `x_k = (e_k, u_{k−1})`:
 //!
 //! `u_k = −Γ⁻¹ L_ff e_k + Γ⁻¹ W_ff u_{k−1}`, `e_{k+1} = e_k + Δt u_k`,
-//! `A = [[I − Δt Γ⁻¹ L_ff, Δt Γ⁻¹ W_ff], [−Γ⁻¹ L_ff, Γ⁻¹ W_ff]]` ([`varying_velocity_closed_loop`]).
+//! `A = [[I − Δt Γ⁻¹ L_ff, Δt Γ⁻¹ W_ff], [−Γ⁻¹ L_ff, Γ⁻¹ W_ff]]`
+//! ([`varying_velocity_closed_loop`]).
 //!
 //! The velocity row is one **Jacobi sweep** for the implicit system `L_ff u = −L_ff e` per step
 //! (Jacobi splitting `L_ff = Γ − W_ff`). As `Δt → 0` the spectrum of A tends to

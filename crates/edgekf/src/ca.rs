@@ -35,14 +35,15 @@
 //! correction (D = 2, SSE2 baseline, a shared 2-core machine).
 //!
 //! Structure exploited: `F = f ⊗ I_D` with `f` upper-triangular, so `F Λ Fᵀ` acts on each
-//! dimension pair's 3 × 3 block as `f B fᵀ` (three row and three column operations); `G` selects the position block, so `S`, `K` and the Joseph
-//! product need only the first `D` columns of `Λ⁻`:
+//! dimension pair's 3 × 3 block as `f B fᵀ` (three row and three column operations); `G`
+//! selects the position block, so `S`, `K` and the Joseph product need only the first `D`
+//! columns of `Λ⁻`:
 //! with `P_G = Λ⁻ Gᵀ` (the first block column) and `N = P_G − K A = (I − K G) P_G`,
 //! `(I − KG) Λ⁻ (I − KG)ᵀ = Λ⁻ − K P_Gᵀ − N Kᵀ` — the Joseph product evaluated factor by
 //! factor, not the algebraically equal but cancellation-prone `Λ⁻ − K S Kᵀ`.
 //!
 //! A slow dense implementation of the same equations with nalgebra [`DMatrix`] is in
-//! [`reference`]; the tests check that the two agree to 1e-12.
+//! [`mod@reference`]; the tests check that the two agree to 1e-12.
 //!
 //! # References
 //! Z. Li and R. T. Rajan, "Geometry-Aware Edge-State Tracking for Robust Affine Formation

@@ -631,7 +631,8 @@ mod tests {
         let back: Vec<Keyframe> = serde_json::from_str(&json).unwrap();
         assert_eq!(back, k);
         // The issue's key `rotation` is accepted, in degrees; unset fields keep earlier values.
-        let s = r#"[{"t": 0}, {"t": 2, "rotation": 90, "translation": [1, 0]}, {"t": 4, "scale": [2, 2]}]"#;
+        let s = r#"[{"t": 0}, {"t": 2, "rotation": 90, "translation": [1, 0]},
+                   {"t": 4, "scale": [2, 2]}]"#;
         let frames: Vec<Keyframe> = serde_json::from_str(s).unwrap();
         let m = Maneuver::<2>::new(&frames).unwrap();
         assert!((m.theta(2.0) - rot(90.0)).amax() < 1e-15);

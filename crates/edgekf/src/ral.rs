@@ -31,16 +31,17 @@
 //! |---|---|---|---|---|
 //! | general | any | `M A⁻¹` | D | rank H = D |
 //! | translation | `I` | `I` | 0 | always |
-//! | scaling | diagonal | `s_d = M_dd / A_dd` (D decoupled LS problems) | 1 | every row of H nonzero |
-//! | rotation | `ΘᵀΘ = I`, `det Θ = 1` | Kabsch: `M = U Σ Φᵀ`, `Θ = U diag(1,…,1, det(UΦᵀ)) Φᵀ` | D − 1 | rank H ≥ D − 1 |
+//! | scaling | diagonal | `s_d = M_dd / A_dd` (D LS problems) | 1 | rows of H nonzero |
+//! | rotation | `ΘᵀΘ = I`, `det Θ = 1` | Kabsch (below) | D − 1 | rank H ≥ D − 1 |
 //! | similarity | `s R` | R as for rotation, `s` see below | D − 1 | rank H ≥ D − 1 |
 //!
 //! *Rotation.* Plain orthogonal Procrustes `Θ = UΦᵀ` (Table 2, Schönemann 1966) maximises
 //! `tr(Θᵀ M)` over all orthogonal matrices, reflections included. When `rank M < D` — one
 //! neighbour in 2-D, two in 3-D, exactly Table 2's minimum — the last singular pair is
 //! arbitrary and `UΦᵀ` is a rotation or a reflection depending on the SVD's sign choices; both
-//! fit the data equally well. The Kabsch fix flips the last singular vector when
-//! `det(UΦᵀ) < 0` and returns the unique best *proper* rotation (Kabsch 1976; Umeyama 1991).
+//! fit the data equally well. The Kabsch fix, `Θ = U diag(1, …, 1, det(UΦᵀ)) Φᵀ` (flip the
+//! singular pair of the smallest singular value when `det(UΦᵀ) < 0`), returns the unique best
+//! *proper* rotation (Kabsch 1976; Umeyama 1991).
 //!
 //! *Similarity scale.* Table 2 prints `ŝ = (1/D) tr((Σ^H)⁻¹ Σ^Y)` with the singular values of H
 //! and of Y taken separately. Checked here (tests):
@@ -55,9 +56,9 @@
 //!
 //! Implemented ([`SimilarityScale::LeastSquares`], default): with the Kabsch rotation `R̂`, the
 //! least-squares scale `ŝ = argmin_s ‖s R̂ H − Y‖² = tr(R̂ᵀ M) / ‖H‖²_F = (Σ_i d_i σ_i(M)) /
-//! ‖H‖²_F` (`d` the Kabsch signs) — jointly optimal over (s, R) because for each fixed s the
-//! best R is R̂ (Umeyama 1991, eq. 42 with the roles of the point sets as here). It is exact on
-//! noiseless inputs of the class for every rank ≥ D − 1, and coincides with the averaged ratio
+//! ‖H‖²_F` (`d` the Kabsch signs) — jointly optimal over (s, R) because for each fixed s > 0
+//! the best R is R̂ (`‖s R H − Y‖² = s²‖H‖² + ‖Y‖² − 2 s tr(Rᵀ M)`; cf. Umeyama 1991). It is
+//! exact on noiseless inputs of the class for every rank ≥ D − 1, and coincides with the averaged ratio
 //! for one neighbour in 2-D. The averaged singular-value ratio is kept as
 //! [`SimilarityScale::SingularValueRatio`] so the two can be compared.
 //!
