@@ -22,6 +22,7 @@
 //!
 //! A departed agent does not move (`u_i = 0`).
 
+pub mod laws;
 pub mod maneuver;
 
 use crate::estimate::Faults;

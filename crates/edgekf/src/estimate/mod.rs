@@ -43,11 +43,14 @@
 
 pub mod ar;
 pub mod batch;
+pub mod ca;
 pub mod crkf;
 pub mod jrkf;
 pub mod mle;
 pub mod mmse;
 pub mod oracle;
+pub mod pcrb;
+pub mod ral;
 pub mod rkf;
 pub mod rkf_commless;
 

@@ -21,7 +21,7 @@ pub use spec::{
     RandomDepartureSpec, ScenarioSpec, SimSpec,
 };
 
-use crate::control::maneuver::{garkf_fig7b, Hold, Maneuver, Trajectory};
+use crate::control::maneuver::{fig7b_keyframes, Hold, Maneuver, Trajectory};
 use crate::control::{FollowerLaw, LeaderMode};
 use crate::estimate::{Configured, Model, Registry};
 use crate::framework::Framework;
@@ -478,7 +478,7 @@ impl Scenario {
             None => None,
             Some(m) => {
                 let frames = match &m.keyframes {
-                    KeyframesSpec::Preset(p) if p == "garkf-fig7b" => garkf_fig7b(),
+                    KeyframesSpec::Preset(p) if p == "garkf-fig7b" => fig7b_keyframes(dim),
                     KeyframesSpec::Preset(p) if p == "hold" => Vec::new(),
                     KeyframesSpec::Preset(p) => {
                         return Err(err(
@@ -488,13 +488,19 @@ impl Scenario {
                     }
                     KeyframesSpec::List(l) => l.clone(),
                 };
-                let traj: Arc<dyn Trajectory> = if frames.is_empty() {
-                    Arc::new(Hold)
-                } else {
-                    Arc::new(
-                        Maneuver::new(&frames, dim)
-                            .map_err(|m| err(k.key("maneuver.keyframes"), m))?,
-                    )
+                let bad = |e: crate::control::maneuver::ManeuverError| {
+                    err(k.key("maneuver.keyframes"), e.to_string())
+                };
+                let traj: Arc<dyn Trajectory> = match (frames.is_empty(), dim) {
+                    (true, _) => Arc::new(Hold),
+                    (false, 2) => Arc::new(Maneuver::<2>::new(&frames).map_err(bad)?),
+                    (false, 3) => Arc::new(Maneuver::<3>::new(&frames).map_err(bad)?),
+                    (false, d) => {
+                        return Err(err(
+                            k.key("maneuver.keyframes"),
+                            format!("maneuvers are defined for D = 2 and 3, got D = {d}"),
+                        ))
+                    }
                 };
                 Some((m.clone(), traj))
             }

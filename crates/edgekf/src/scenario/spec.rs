@@ -5,7 +5,7 @@
 use serde::de::{DeserializeOwned, Deserializer};
 use serde::{Deserialize, Serialize};
 
-use crate::control::maneuver::KeyframeSpec;
+use crate::control::maneuver::Keyframe;
 use crate::estimate::ArModel;
 use crate::noise::Kernel;
 
@@ -301,7 +301,7 @@ pub enum KeyframesSpec {
     /// A shipped maneuver (`"garkf-fig7b"`, `"hold"`).
     Preset(String),
     /// Explicit key frames.
-    List(Vec<KeyframeSpec>),
+    List(Vec<Keyframe>),
 }
 
 /// A maneuver: the target `Z*(t) = Θ*(t) P + t*(t) 1ᵀ` (Li & Rajan eq. 2).
