@@ -10,9 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context};
-use edgekf::design::{self, generators, Candidate, CheckReport, Method};
+use edgekf::design::{self, generators, Candidate, CheckReport, LeaderMode, Method};
 use edgekf::framework::Framework;
-use plotters::prelude::*;
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
@@ -35,6 +34,13 @@ pub enum Generator {
     Random50Dense,
     /// Complete graph on random points (`--agents`, `--dim`, `--seed`).
     Complete,
+    /// Sparse candidates just above the rigidity threshold (`--agents`, `--dim`, `--neighbours`,
+    /// `--seed`): each agent linked to its D + 1 nearest earlier agents (a D-trilateration
+    /// backbone) plus every agent's `--neighbours` nearest agents; unit density.
+    Backbone,
+    /// Zhao's 7-agent affine-maneuver example (IEEE TAC 2018): 12 links, leaders 0, 1, 2 not all
+    /// linked.
+    Zhao7,
 }
 
 /// Design methods of `--method`.
@@ -58,6 +64,53 @@ impl From<MethodArg> for Method {
     }
 }
 
+/// How `--leaders auto` chooses.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeaderModeArg {
+    /// D + 1 mutually linked agents (the distance-based leader law needs them).
+    Clique,
+    /// Any D + 1 affinely independent agents (leaders that track a target).
+    Affine,
+}
+
+impl From<LeaderModeArg> for LeaderMode {
+    fn from(m: LeaderModeArg) -> Self {
+        match m {
+            LeaderModeArg::Clique => LeaderMode::Clique,
+            LeaderModeArg::Affine => LeaderMode::Affine,
+        }
+    }
+}
+
+/// What `--leaders` asks for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LeadersArg {
+    /// Choose after the design (`auto`).
+    Auto,
+    /// No leaders (`none`).
+    None,
+    /// These agents (`i,j,k`).
+    List(Vec<usize>),
+}
+
+impl std::str::FromStr for LeadersArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(LeadersArg::Auto),
+            "none" => Ok(LeadersArg::None),
+            list => list
+                .split(',')
+                .map(|t| t.trim().parse::<usize>())
+                .collect::<Result<Vec<_>, _>>()
+                .map(LeadersArg::List)
+                .map_err(|_| {
+                    format!("--leaders takes auto, none or a list like 0,1,2; got {list:?}")
+                }),
+        }
+    }
+}
+
 /// Arguments of `edgekf design`.
 #[derive(clap::Args, Debug)]
 pub struct DesignArgs {
@@ -73,12 +126,23 @@ pub struct DesignArgs {
     /// Dimension D (trilateration, complete).
     #[arg(long, default_value_t = 2)]
     pub dim: usize,
+    /// Nearest neighbours added to the backbone generator's links.
+    #[arg(long, default_value_t = 2)]
+    pub neighbours: usize,
     /// Seed of the random generators.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Design method.
     #[arg(long, value_enum, default_value = "sdp")]
     pub method: MethodArg,
+    /// Leaders: `auto` (chosen after the design to maximise λ_min(L_ff), see
+    /// `--leader-mode`), `none`, or a list `i,j,k`. Default: the input's (or generator's).
+    #[arg(long)]
+    pub leaders: Option<LeadersArg>,
+    /// How `--leaders auto` chooses: a mutually linked clique (for the distance-based leader
+    /// law) or any affinely independent agents (for target tracking).
+    #[arg(long, value_enum, default_value = "clique")]
+    pub leader_mode: LeaderModeArg,
     /// Output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
@@ -153,6 +217,17 @@ fn generate(args: &DesignArgs, which: Generator) -> anyhow::Result<Candidate> {
             needs("trilateration")?;
             generators::trilateration(args.agents, args.dim, args.dim + 2, &mut rng)
         }
+        Generator::Backbone => {
+            needs("backbone")?;
+            let side = (args.agents as f64).powf(1.0 / args.dim as f64);
+            generators::backbone(
+                args.agents,
+                &vec![side; args.dim],
+                args.neighbours,
+                &mut rng,
+            )
+        }
+        Generator::Zhao7 => generators::zhao7_candidate(),
         Generator::Random50Sparse => generators::random50(generators::Density::Sparse, &mut rng),
         Generator::Random50Dense => generators::random50(generators::Density::Dense, &mut rng),
         Generator::Complete => {
@@ -209,11 +284,16 @@ fn tmp_path(path: &Path) -> PathBuf {
 /// Unreadable or malformed input, infeasible design (the message names the failed condition),
 /// or output that cannot be written.
 pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
-    let candidate = match (&args.input, args.generate) {
+    let mut candidate = match (&args.input, args.generate) {
         (Some(path), None) => read_input(path)?,
         (None, Some(which)) => generate(args, which)?,
         _ => bail!("give either a framework file or --generate"),
     };
+    match &args.leaders {
+        Some(LeadersArg::List(list)) => candidate.leaders = list.clone(),
+        Some(LeadersArg::None | LeadersArg::Auto) => candidate.leaders.clear(),
+        None => {}
+    }
     let method: Method = args.method.into();
     println!(
         "designing {} ({} agents in {}-D, {} candidate links) with method {:?}",
@@ -227,6 +307,25 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
     let designed = design::design(&candidate, method)
         .map_err(|e| anyhow!("design of {:?} failed — {e}", candidate.name))?;
     let elapsed = start.elapsed();
+    let mut designed = designed;
+    if args.leaders == Some(LeadersArg::Auto) {
+        let mode: LeaderMode = args.leader_mode.into();
+        let choice = design::choose_leaders(&designed.framework, mode)
+            .map_err(|e| anyhow!("choosing leaders failed — {e}"))?;
+        println!(
+            "leaders chosen ({mode:?} mode): {:?} — λ_min(L_ff) = {:.4}, proxy σ_min(V_ℓ) = {:.4}; \
+             best of {} evaluated among {} candidate sets ranked by the proxy",
+            choice.leaders,
+            choice.follower_min_eigenvalue,
+            choice.proxy,
+            choice.evaluated,
+            choice.candidates
+        );
+        designed.framework = designed
+            .framework
+            .with_leaders(&choice.leaders)
+            .map_err(|e| anyhow!("choosing leaders failed — {e}"))?;
+    }
     let f = &designed.framework;
     let report = CheckReport::from_framework(f);
     println!("{report}");
@@ -249,9 +348,13 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         );
     } else {
         println!(
-            "method {}: {kept} of {} candidate links kept (average degree {degree:.2}), {} Newton \
-             steps, {time:.3} s",
-            designed.method, designed.candidate_links, designed.newton_steps
+            "method {}: {kept} of {} candidate links kept (average degree {degree:.2}); solver {}, \
+             {} iterations, relative optimality gap {:.1e}; {time:.3} s",
+            designed.method,
+            designed.candidate_links,
+            designed.solver,
+            designed.newton_steps,
+            designed.gap
         );
     }
     report
@@ -270,34 +373,111 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Draws agents, links (width ∝ |weight|, blue positive, red negative), leaders highlighted.
-/// 3-D frameworks are drawn in their x–y projection.
+/// Draws the framework with the figure toolkit: links with width ∝ |weight| (blue positive, vermillion
+/// negative) and their weights written over them (on a white halo, so a thick link never hides its label),
+/// agents as black dots, leaders as larger red ones, agent numbers beside them, axes in metres. 3-D frameworks
+/// are drawn in their x–y projection.
 fn plot_framework(
     f: &Framework,
     report: &CheckReport,
     method: &str,
     path: &Path,
 ) -> anyhow::Result<()> {
-    crate::plot::register_fonts();
+    use crate::figure::{
+        palette, Axis, Curve, Figure, HAlign, Label, Marker, Panel, Shape, Style, VAlign,
+    };
     let n = f.agents();
     let xy = |i: usize| -> (f64, f64) {
         let p = f.point(i);
         (p[0], if p.len() > 1 { p[1] } else { 0.0 })
     };
+    let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m"));
+    p.equal_aspect = true;
+    p.coincide_tolerance = None;
+    let wmax = f
+        .weights()
+        .iter()
+        .fold(0.0_f64, |m, w| m.max(w.abs()))
+        .max(f64::MIN_POSITIVE);
+    // Weight labels only while they stay readable, each at the point of its link (half way, or
+    // nearer an end) farthest from the agents and the labels placed so far: a link through an
+    // agent would otherwise have its label on that agent.
+    let label_weights = f.graph().links().len() <= 60;
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for i in 0..n {
         let (x, y) = xy(i);
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y0 = y0.min(y);
-        y1 = y1.max(y);
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
-    let pad = 0.08 * (x1 - x0).max(y1 - y0).max(1e-9);
-    let root = crate::figure::backend::KernedText::new(BitMapBackend::new(path, (900, 900)))
-        .into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+    let extent = (x1 - x0).max(y1 - y0).max(1e-9);
+    let mut taken: Vec<(f64, f64)> = (0..n).map(xy).collect();
+    for (&(i, j), &w) in f.graph().links().iter().zip(f.weights()) {
+        let (a, b) = (xy(i), xy(j));
+        let (colour, label) = if w > 0.0 {
+            (
+                palette::SERIES[0],
+                "positive weight w_{ij} (width ∝ |w_{ij}|)",
+            )
+        } else {
+            (palette::SERIES[1], "negative weight w_{ij}")
+        };
+        p.curves.push(
+            Curve::new(label, vec![a.0, b.0], vec![a.1, b.1]).with_style(
+                Style::line()
+                    .colour(colour)
+                    .width(1.0 + 7.0 * w.abs() / wmax),
+            ),
+        );
+        if label_weights {
+            let clearance = |q: (f64, f64)| {
+                taken
+                    .iter()
+                    .map(|t| (t.0 - q.0).hypot(t.1 - q.1))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let at = |t: f64| (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            // Half way unless that is crowded; then the clearest of a few points along the link.
+            let mut q = at(0.5);
+            if clearance(q) < 0.06 * extent {
+                q = [0.5, 0.38, 0.62, 0.3, 0.7, 0.25, 0.75]
+                    .iter()
+                    .map(|&t| at(t))
+                    .max_by(|p, r| clearance(*p).total_cmp(&clearance(*r)))
+                    .unwrap_or(q);
+            }
+            taken.push(q);
+            p.labels.push(Label {
+                size: 12.0,
+                offset: (0.0, 0.0),
+                v: VAlign::Middle,
+                ..Label::new(q.0, q.1, format!("{w:.2}").replace('-', "−"))
+            });
+        }
+    }
+    let leaders = f.leaders();
+    let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n).filter(|i| !leaders.contains(i)).map(xy).unzip();
+    p.curves.push(
+        Curve::new("agents", fx, fy)
+            .with_style(Style::markers(Marker::new(Shape::Circle, 12.0)).colour(palette::MARKER)),
+    );
+    if !leaders.is_empty() {
+        let (lx, ly): (Vec<f64>, Vec<f64>) = leaders.iter().map(|&i| xy(i)).unzip();
+        p.curves.push(
+            Curve::new("leaders", lx, ly).with_style(
+                Style::markers(Marker::new(Shape::Circle, 16.0)).colour(palette::LEADER),
+            ),
+        );
+    }
+    for i in 0..n {
+        let (x, y) = xy(i);
+        p.labels.push(Label {
+            offset: (9.0, -9.0),
+            h: HAlign::Left,
+            size: 15.0,
+            ..Label::new(x, y, format!("{i}"))
+        });
+    }
     let title = format!(
-        "{} — {} design, {} links, λ_max/λ_gap = {:.1}{}",
+        "{} — {} design, {} links, λ_{{max}}/λ_{{gap}} = {:.1}{}",
         f.name(),
         method,
         f.graph().links().len(),
@@ -308,77 +488,16 @@ fn plot_framework(
             ""
         }
     );
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(55)
-        .build_cartesian_2d(x0 - pad..x1 + pad, y0 - pad..y1 + pad)
-        .map_err(|e| anyhow!("plot: {e}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("x")
-        .y_desc("y")
-        .label_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| anyhow!("plot: {e}"))?;
-    let wmax = f
-        .weights()
-        .iter()
-        .fold(0.0_f64, |m, w| m.max(w.abs()))
-        .max(f64::MIN_POSITIVE);
-    for (&(i, j), &w) in f.graph().links().iter().zip(f.weights()) {
-        let width = 1 + (7.0 * w.abs() / wmax).round() as u32;
-        let colour = if w > 0.0 { BLUE.mix(0.7) } else { RED.mix(0.6) };
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![xy(i), xy(j)],
-                colour.stroke_width(width),
-            )))
-            .map_err(|e| anyhow!("plot: {e}"))?;
+    let mut fig = Figure::single(title, p).with_size(900, 900);
+    if !label_weights {
+        fig.notes.push(
+            "Weights not written on the links (more than 60 links); see framework.json.".into(),
+        );
     }
-    let leaders = f.leaders();
-    chart
-        .draw_series((0..n).map(|i| {
-            let leader = leaders.contains(&i);
-            let style = if leader {
-                ShapeStyle::from(&BLACK).filled()
-            } else {
-                ShapeStyle::from(&RGBColor(90, 90, 90)).filled()
-            };
-            Circle::new(xy(i), if leader { 9 } else { 6 }, style)
-        }))
-        .map_err(|e| anyhow!("plot: {e}"))?
-        .label("agents (large: leaders)")
-        .legend(|(x, y)| Circle::new((x, y), 6, ShapeStyle::from(&BLACK).filled()));
-    chart
-        .draw_series((0..n).map(|i| {
-            Text::new(
-                format!("{i}"),
-                (xy(i).0 + 0.25 * pad, xy(i).1 + 0.25 * pad),
-                ("sans-serif", 14).into_font(),
-            )
-        }))
-        .map_err(|e| anyhow!("plot: {e}"))?;
-    chart
-        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-        .map_err(|e| anyhow!("plot: {e}"))?
-        .label("positive weight (width ∝ |w|)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(3)));
-    chart
-        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-        .map_err(|e| anyhow!("plot: {e}"))?
-        .label("negative weight")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 15))
-        .draw()
-        .map_err(|e| anyhow!("plot: {e}"))?;
-    root.present().map_err(|e| anyhow!("plot: {e}"))?;
+    let rep = fig.render(path).map_err(|e| anyhow!("plot: {e}"))?;
+    for w in rep.problems() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     Ok(())
 }
 
@@ -392,8 +511,11 @@ mod tests {
             generate: Some(Generator::Hexagon),
             agents: 20,
             dim: 2,
+            neighbours: 2,
             seed: 1,
             method: MethodArg::Sdp,
+            leaders: None,
+            leader_mode: LeaderModeArg::Clique,
             out,
         }
     }
@@ -437,6 +559,58 @@ mod tests {
         .unwrap_err();
         assert!(err.to_string().contains("not universally rigid"), "{err}");
         assert!(!dir.join("flex/framework.json").exists());
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn zhao_example_and_automatic_leaders() {
+        let dir = std::env::temp_dir().join(format!("edgekf-design-zhao-{}", std::process::id()));
+        // Zhao's example keeps its unlinked leaders 0, 1, 2.
+        let a = DesignArgs {
+            generate: Some(Generator::Zhao7),
+            method: MethodArg::Sparse,
+            out: dir.join("zhao"),
+            ..args(dir.clone())
+        };
+        run(&a).unwrap();
+        let file: FrameworkFile =
+            serde_json::from_str(&fs::read_to_string(dir.join("zhao/framework.json")).unwrap())
+                .unwrap();
+        assert_eq!(file.leaders, vec![0, 1, 2]);
+        assert_eq!(file.edges.len(), 12);
+        // --leaders auto in both modes writes D + 1 leaders; in clique mode they are linked.
+        for mode in [LeaderModeArg::Clique, LeaderModeArg::Affine] {
+            let out = dir.join(format!("{mode:?}"));
+            run(&DesignArgs {
+                generate: Some(Generator::Backbone),
+                agents: 30,
+                leaders: Some(LeadersArg::Auto),
+                leader_mode: mode,
+                out: out.clone(),
+                ..args(dir.clone())
+            })
+            .unwrap();
+            let file: FrameworkFile =
+                serde_json::from_str(&fs::read_to_string(out.join("framework.json")).unwrap())
+                    .unwrap();
+            assert_eq!(file.leaders.len(), 3);
+            if mode == LeaderModeArg::Clique {
+                for (k, &i) in file.leaders.iter().enumerate() {
+                    for &j in &file.leaders[k + 1..] {
+                        assert!(
+                            file.edges.contains(&[i.min(j), i.max(j)]),
+                            "{:?}",
+                            file.leaders
+                        );
+                    }
+                }
+            }
+        }
+        assert_eq!(
+            "4, 7,9".parse::<LeadersArg>(),
+            Ok(LeadersArg::List(vec![4, 7, 9]))
+        );
+        assert!("4;7".parse::<LeadersArg>().is_err());
         let _ = fs::remove_dir_all(&dir);
     }
 }

@@ -385,6 +385,20 @@ impl Framework {
     }
 }
 
+impl Framework {
+    /// The same framework with other leaders (none, or `D + 1` distinct agents); the stress is
+    /// not re-verified (it does not depend on who leads).
+    ///
+    /// # Errors
+    /// [`FrameworkError::LeaderCount`], [`FrameworkError::LeaderOutOfRange`] or
+    /// [`FrameworkError::DuplicateLeader`].
+    pub fn with_leaders(mut self, leaders: &[usize]) -> Result<Self, FrameworkError> {
+        check_leaders(&self.graph, self.dim, leaders)?;
+        self.leaders = leaders.to_vec();
+        Ok(self)
+    }
+}
+
 fn check_leaders(graph: &Graph, dim: usize, leaders: &[usize]) -> Result<(), FrameworkError> {
     let n = graph.agents();
     if !(leaders.is_empty() || leaders.len() == dim + 1) {
@@ -425,16 +439,22 @@ pub struct StressSpectrum {
 
 impl StressSpectrum {
     /// Computes the spectrum of `laplacian` (N × N) and the equilibrium residual of the
-    /// agent-major configuration `flat` (N · D).
+    /// agent-major configuration `flat` (N · D). Eigenvalues only (no eigenvectors: 0.6 s
+    /// instead of 2.3 s for N = 1000).
     pub fn of(laplacian: &DMatrix<f64>, flat: &[f64], dim: usize) -> Self {
+        let eigenvalues: Vec<f64> = laplacian.symmetric_eigenvalues().iter().copied().collect();
+        Self::from_eigenvalues(eigenvalues, laplacian, flat, dim)
+    }
+
+    /// As [`StressSpectrum::of`], with the eigenvalues of `laplacian` already computed (in any
+    /// order).
+    pub fn from_eigenvalues(
+        mut eigenvalues: Vec<f64>,
+        laplacian: &DMatrix<f64>,
+        flat: &[f64],
+        dim: usize,
+    ) -> Self {
         let n = laplacian.nrows();
-        let mut eigenvalues: Vec<f64> = laplacian
-            .clone()
-            .symmetric_eigen()
-            .eigenvalues
-            .iter()
-            .copied()
-            .collect();
         eigenvalues.sort_by(f64::total_cmp);
         let scale = eigenvalues
             .iter()

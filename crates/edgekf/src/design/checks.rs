@@ -68,6 +68,15 @@ pub struct CheckReport {
     pub expected_rank: usize,
     /// The trilateration test.
     pub trilateration: Trilateration,
+    /// Leaders (none, or D + 1 agents).
+    pub leaders: Vec<usize>,
+    /// A pair of leaders that is not linked, if any (the distance-based leader law of thesis
+    /// §3.5 needs the leaders mutually linked; target tracking does not).
+    pub unlinked_leaders: Option<(usize, usize)>,
+    /// `λ_min(L_ff)`, the smallest eigenvalue of the followers' block of `L` (leaders' rows and
+    /// columns removed): the followers' convergence rate with the leaders held, time constant
+    /// `1/λ_min(L_ff)`. `None` without leaders.
+    pub follower_min_eigenvalue: Option<f64>,
 }
 
 impl CheckReport {
@@ -147,25 +156,53 @@ impl CheckReport {
         Ok(())
     }
 
-    /// The report of a checked framework.
+    /// The report of a checked framework, with its leaders. Reuses the framework's eigenvalues
+    /// (no second eigendecomposition).
     pub fn from_framework(f: &Framework) -> Self {
         let config: Vec<Vec<f64>> = (0..f.agents()).map(|i| f.point(i).to_vec()).collect();
-        check(f.dim(), &config, f.graph().links(), f.weights())
-            .expect("a built framework has valid links")
+        let links: Vec<(usize, usize, f64)> = f
+            .graph()
+            .links()
+            .iter()
+            .zip(f.weights())
+            .map(|(&(i, j), &w)| (i, j, w))
+            .collect();
+        let spectrum = crate::framework::StressSpectrum::from_eigenvalues(
+            f.eigenvalues().to_vec(),
+            f.laplacian(),
+            f.config(),
+            f.dim(),
+        );
+        report(
+            f.dim(),
+            &config,
+            &links,
+            f.laplacian(),
+            spectrum,
+            f.leaders(),
+        )
+    }
+
+    /// The time constant `1/λ_min(L_ff)` of the followers (unit gain), if there are leaders.
+    pub fn follower_time_constant(&self) -> Option<f64> {
+        self.follower_min_eigenvalue.map(|v| 1.0 / v)
     }
 }
 
-/// Checks a framework given by its configuration, links and one weight per link. Links with
-/// zero weight are ignored (they are not links of the stress).
+/// Checks a framework given by its configuration, links, one weight per link and its leaders
+/// (none, or D + 1 agents). Links with zero weight are ignored (they are not links of the
+/// stress).
 ///
 /// # Errors
 /// [`DesignError::Input`] for malformed input only (wrong lengths, agents out of range,
-/// non-finite numbers); every failed *condition* is reported in the [`CheckReport`].
+/// non-finite numbers, a wrong number of leaders or repeated leaders); every failed *condition*
+/// is reported in the [`CheckReport`].
 pub fn check(
     dim: usize,
     config: &[Vec<f64>],
     links: &[(usize, usize)],
     weights: &[f64],
+    leaders: &[usize],
 ) -> Result<CheckReport, DesignError> {
     let n = config.len();
     if !(1..=3).contains(&dim) {
@@ -187,6 +224,20 @@ pub fn check(
             )));
         }
     }
+    if !(leaders.is_empty() || leaders.len() == dim + 1) {
+        return Err(DesignError::Input(format!(
+            "{} leaders given; none or D + 1 = {} are needed",
+            leaders.len(),
+            dim + 1
+        )));
+    }
+    for (k, &a) in leaders.iter().enumerate() {
+        if a >= n || leaders[..k].contains(&a) {
+            return Err(DesignError::Input(format!(
+                "leader {a} is out of range (agents are 0..{n}) or listed twice"
+            )));
+        }
+    }
     let mut active = Vec::new();
     for (&(i, j), &w) in links.iter().zip(weights) {
         if i >= n || j >= n || i == j {
@@ -203,11 +254,37 @@ pub fn check(
             active.push((i.min(j), i.max(j), w));
         }
     }
-    // Connectivity.
-    let mut adj = vec![vec![false; n]; n];
-    for &(i, j, _) in &active {
-        adj[i][j] = true;
-        adj[j][i] = true;
+    // Laplacian, spectrum, equilibrium: the same tolerances as Framework::new (StressSpectrum).
+    let mut l = DMatrix::<f64>::zeros(n, n);
+    for &(i, j, w) in &active {
+        l[(i, i)] += w;
+        l[(j, j)] += w;
+        l[(i, j)] -= w;
+        l[(j, i)] -= w;
+    }
+    let flat: Vec<f64> = config.iter().flatten().copied().collect();
+    let spectrum = crate::framework::StressSpectrum::of(&l, &flat, dim);
+    Ok(report(dim, config, &active, &l, spectrum, leaders))
+}
+
+/// The report from the (validated) links with nonzero weight, the stress matrix and its spectrum.
+fn report(
+    dim: usize,
+    config: &[Vec<f64>],
+    active: &[(usize, usize, f64)],
+    l: &DMatrix<f64>,
+    spectrum: crate::framework::StressSpectrum,
+    leaders: &[usize],
+) -> CheckReport {
+    let n = config.len();
+    // Connectivity (adjacency lists, so that the report stays O(N + L) beyond the spectrum).
+    let mut adj = vec![Vec::new(); n];
+    for &(i, j, _) in active {
+        adj[i].push(j);
+        adj[j].push(i);
+    }
+    for a in &mut adj {
+        a.sort_unstable();
     }
     let unreached = if n == 0 {
         None
@@ -216,8 +293,8 @@ pub fn check(
         let mut stack = vec![0];
         seen[0] = true;
         while let Some(a) = stack.pop() {
-            for b in 0..n {
-                if adj[a][b] && !seen[b] {
+            for &b in &adj[a] {
+                if !seen[b] {
                     seen[b] = true;
                     stack.push(b);
                 }
@@ -241,25 +318,23 @@ pub fn check(
     } else {
         sv.min() / smax
     };
-    // Laplacian, spectrum, equilibrium: the same tolerances as Framework::new (StressSpectrum).
-
-    let mut l = DMatrix::<f64>::zeros(n, n);
-    for &(i, j, w) in &active {
-        l[(i, i)] += w;
-        l[(j, j)] += w;
-        l[(i, j)] -= w;
-        l[(j, i)] -= w;
-    }
-    let flat: Vec<f64> = config.iter().flatten().copied().collect();
     let crate::framework::StressSpectrum {
         eigenvalues,
         eigen_tolerance,
         rank,
         equilibrium_residual,
         equilibrium_tolerance,
-    } = crate::framework::StressSpectrum::of(&l, &flat, dim);
-    let trilateration = trilateration_test(&adj, dim);
-    Ok(CheckReport {
+    } = spectrum;
+    let trilateration = trilateration_lists(&adj, dim);
+    let unlinked_leaders = leaders.iter().enumerate().find_map(|(k, &a)| {
+        leaders[k + 1..]
+            .iter()
+            .find(|&&b| adj[a].binary_search(&b).is_err())
+            .map(|&b| (a.min(b), a.max(b)))
+    });
+    let follower_min_eigenvalue =
+        (!leaders.is_empty()).then(|| super::leaders::follower_min_eigenvalue(l, leaders));
+    CheckReport {
         agents: n,
         dim,
         links: active.len(),
@@ -273,14 +348,26 @@ pub fn check(
         rank,
         expected_rank: n.saturating_sub(dim + 1),
         trilateration,
-    })
+        leaders: leaders.to_vec(),
+        unlinked_leaders,
+        follower_min_eigenvalue,
+    }
 }
 
 /// Whether the graph is a D-trilateration graph: some D + 1 agents form a complete subgraph and
 /// the others can be ordered so that each links to at least D + 1 earlier ones (thesis §2.5).
 /// For a fixed seed the greedy closure is exact (adding an agent never hurts), so we try every
-/// seed clique.
+/// seed clique (at most [`MAX_SEEDS`]).
 pub fn trilateration_test(adj: &[Vec<bool>], dim: usize) -> Trilateration {
+    let lists: Vec<Vec<usize>> = adj
+        .iter()
+        .map(|row| (0..row.len()).filter(|&b| row[b]).collect())
+        .collect();
+    trilateration_lists(&lists, dim)
+}
+
+/// [`trilateration_test`] on ascending adjacency lists: each seed costs `O(N + L)`.
+fn trilateration_lists(adj: &[Vec<usize>], dim: usize) -> Trilateration {
     let n = adj.len();
     let k = dim + 1;
     if n < k {
@@ -289,7 +376,26 @@ pub fn trilateration_test(adj: &[Vec<bool>], dim: usize) -> Trilateration {
     let mut tried = 0;
     let mut clique = Vec::with_capacity(k);
     let mut result = None;
-    extend_clique(adj, k, 0, &mut clique, &mut tried, &mut result);
+    let mut count = vec![0usize; n];
+    let mut inside = vec![false; n];
+    for v in 0..n {
+        let later: Vec<usize> = adj[v].iter().copied().filter(|&u| u > v).collect();
+        clique.push(v);
+        extend_clique(
+            adj,
+            k,
+            &mut clique,
+            &later,
+            &mut tried,
+            &mut result,
+            &mut count,
+            &mut inside,
+        );
+        clique.pop();
+        if result.is_some() {
+            break;
+        }
+    }
     match result {
         Some(Some(seed)) => Trilateration::Yes { seed },
         Some(None) => Trilateration::Undecided,
@@ -297,15 +403,18 @@ pub fn trilateration_test(adj: &[Vec<bool>], dim: usize) -> Trilateration {
     }
 }
 
-/// Depth-first enumeration of k-cliques; `result` becomes `Some(Some(seed))` on success and
-/// `Some(None)` when the seed budget runs out.
+/// Depth-first enumeration of k-cliques (candidates: common later neighbours); `result` becomes
+/// `Some(Some(seed))` on success and `Some(None)` when the seed budget runs out.
+#[allow(clippy::too_many_arguments)]
 fn extend_clique(
-    adj: &[Vec<bool>],
+    adj: &[Vec<usize>],
     k: usize,
-    start: usize,
     clique: &mut Vec<usize>,
+    cand: &[usize],
     tried: &mut usize,
     result: &mut Option<Option<Vec<usize>>>,
+    count: &mut [usize],
+    inside: &mut [bool],
 ) {
     if result.is_some() {
         return;
@@ -314,54 +423,61 @@ fn extend_clique(
         *tried += 1;
         if *tried > MAX_SEEDS {
             *result = Some(None);
-        } else if closure_covers_all(adj, clique, k) {
+        } else if closure_covers_all(adj, clique, k, count, inside) {
             *result = Some(Some(clique.clone()));
         }
         return;
     }
-    for v in start..adj.len() {
-        if clique.iter().all(|&c| adj[c][v]) {
-            clique.push(v);
-            extend_clique(adj, k, v + 1, clique, tried, result);
-            clique.pop();
-            if result.is_some() {
-                return;
-            }
+    for (p, &v) in cand.iter().enumerate() {
+        let next: Vec<usize> = cand[p + 1..]
+            .iter()
+            .copied()
+            .filter(|u| adj[v].binary_search(u).is_ok())
+            .collect();
+        clique.push(v);
+        extend_clique(adj, k, clique, &next, tried, result, count, inside);
+        clique.pop();
+        if result.is_some() {
+            return;
         }
     }
 }
 
-fn closure_covers_all(adj: &[Vec<bool>], seed: &[usize], k: usize) -> bool {
+/// Whether the greedy closure of `seed` (add any agent with ≥ k neighbours inside) is everyone.
+/// `count` and `inside` are scratch space, returned cleared.
+fn closure_covers_all(
+    adj: &[Vec<usize>],
+    seed: &[usize],
+    k: usize,
+    count: &mut [usize],
+    inside: &mut [bool],
+) -> bool {
     let n = adj.len();
-    let mut inside = vec![false; n];
-    let mut count = vec![0usize; n];
-    let mut queue = Vec::new();
-    let mut added = 0;
-    let add = |v: usize,
-               inside: &mut Vec<bool>,
-               count: &mut Vec<usize>,
-               queue: &mut Vec<usize>,
-               added: &mut usize| {
+    let mut queue: Vec<usize> = seed.to_vec();
+    let mut added = Vec::with_capacity(n);
+    for &v in seed {
         inside[v] = true;
-        *added += 1;
-        for u in 0..n {
-            if adj[v][u] && !inside[u] {
+    }
+    while let Some(v) = queue.pop() {
+        added.push(v);
+        for &u in &adj[v] {
+            if !inside[u] {
                 count[u] += 1;
                 if count[u] == k {
+                    inside[u] = true;
                     queue.push(u);
                 }
             }
         }
-    };
-    for &v in seed {
-        add(v, &mut inside, &mut count, &mut queue, &mut added);
     }
-    while let Some(v) = queue.pop() {
-        if !inside[v] {
-            add(v, &mut inside, &mut count, &mut queue, &mut added);
-        }
+    let all = added.len() == n;
+    for c in count.iter_mut() {
+        *c = 0;
     }
-    added == n
+    for v in inside.iter_mut() {
+        *v = false;
+    }
+    all
 }
 
 impl fmt::Display for CheckReport {
@@ -438,6 +554,40 @@ impl fmt::Display for CheckReport {
             "  smallest nonzero eigenvalue (convergence rate) {gap:.4}, largest {lmax:.4}, ratio {:.2}",
             lmax / gap
         )?;
+        match self.follower_min_eigenvalue {
+            None => writeln!(f, "  no leaders (an affine formation only)")?,
+            Some(lam) => {
+                let rel = lam / gap.abs().max(f64::MIN_POSITIVE);
+                if rel > 1e-9 {
+                    writeln!(
+                        f,
+                        "  leaders {:?}: λ_min(L_ff) = {lam:.4} (followers' time constant \
+                         1/λ_min(L_ff) = {:.4} at unit gain)",
+                        self.leaders,
+                        1.0 / lam
+                    )?;
+                } else {
+                    writeln!(
+                        f,
+                        "  [!!]   leaders {:?} are affinely dependent: λ_min(L_ff) = {lam:.2e}, \
+                         the followers are not pinned",
+                        self.leaders
+                    )?;
+                }
+                match self.unlinked_leaders {
+                    None => writeln!(
+                        f,
+                        "         leaders mutually linked: the distance-based leader law (thesis \
+                         §3.5) applies"
+                    )?,
+                    Some((a, b)) => writeln!(
+                        f,
+                        "         leaders {a} and {b} are not linked: fine for target tracking; \
+                         the distance-based leader law (thesis §3.5) needs linked leaders"
+                    )?,
+                }
+            }
+        }
         match self.verdict() {
             Ok(()) => write!(f, "verdict: universally rigid with a valid stress"),
             Err(e) => write!(f, "verdict: FAILED — {e}"),
@@ -467,7 +617,7 @@ mod tests {
         let f = Framework::hexagon();
         let cfg: Vec<Vec<f64>> = (0..10).map(|i| f.point(i).to_vec()).collect();
         let neg: Vec<f64> = f.weights().iter().map(|v| -v).collect();
-        let r = check(2, &cfg, f.graph().links(), &neg).unwrap();
+        let r = check(2, &cfg, f.graph().links(), &neg, &[]).unwrap();
         assert!(!r.psd());
         assert!(r
             .verdict()
@@ -476,7 +626,7 @@ mod tests {
             .contains("not positive semidefinite"));
         // Collinear points: not generic.
         let line: Vec<Vec<f64>> = (0..10).map(|i| vec![i as f64, 2.0 * i as f64]).collect();
-        let r = check(2, &line, f.graph().links(), f.weights()).unwrap();
+        let r = check(2, &line, f.graph().links(), f.weights(), &[]).unwrap();
         assert!(matches!(r.verdict(), Err(DesignError::NonGeneric(_))));
         // A path is a tree: connected but not trilateration.
         let adj = vec![

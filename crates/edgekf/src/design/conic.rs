@@ -59,7 +59,7 @@ fn svec_index(n: usize) -> Vec<(usize, usize)> {
 
 /// `svec(A_k)` for every stress basis vector: an `n'(n'+1)/2 × m` matrix.
 fn svec_basis(space: &StressSpace) -> (DMatrix<f64>, Vec<(usize, usize)>) {
-    let u = &space.u;
+    let u = &space.u();
     let np = u.nrows();
     let idx = svec_index(np);
     let sqrt2 = std::f64::consts::SQRT_2;
@@ -128,7 +128,7 @@ pub(crate) fn solve(
 ) -> Result<Outcome, DesignError> {
     let m = space.z.ncols();
     let nl = space.z.nrows();
-    let np = space.u.nrows();
+    let np = space.np();
     let (svec_a, idx) = svec_basis(space);
     let nvec = idx.len();
     let svec_i = DVector::from_iterator(nvec, idx.iter().map(|&(i, j)| f64::from(i == j)));

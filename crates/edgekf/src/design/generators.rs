@@ -22,7 +22,8 @@ pub struct Candidate {
     pub config: Vec<Vec<f64>>,
     /// Candidate undirected links.
     pub links: Vec<(usize, usize)>,
-    /// Leaders: none, or D + 1 mutually linked agents.
+    /// Leaders: none, or D + 1 agents (they need not be linked; the distance-based leader law
+    /// of thesis §3.5, which needs them linked, is checked where it is used).
     pub leaders: Vec<usize>,
 }
 
@@ -38,6 +39,14 @@ impl Candidate {
 pub fn random_config(n: usize, dim: usize, extent: f64, rng: &mut impl Rng) -> Vec<Vec<f64>> {
     (0..n)
         .map(|_| (0..dim).map(|_| rng.random_range(0.0..extent)).collect())
+        .collect()
+}
+
+/// `n` points drawn uniformly in the box `[0, extents[0]] × … × [0, extents[D−1]]` (`D` =
+/// `extents.len()`); generic with probability one.
+pub fn random_config_box(n: usize, extents: &[f64], rng: &mut impl Rng) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|_| extents.iter().map(|&e| rng.random_range(0.0..e)).collect())
         .collect()
 }
 
@@ -118,6 +127,160 @@ pub fn trilateration(n: usize, dim: usize, k: usize, rng: &mut impl Rng) -> Cand
         config,
         links,
         leaders: (0..=dim).collect(),
+    }
+}
+
+/// A D-trilateration backbone plus nearest neighbours: `n` uniform points in the box with the
+/// given `extents` (one per dimension, `D = extents.len()`), every agent after the first `D + 1`
+/// linked to its `D + 1` nearest earlier agents (the sparsest D-trilateration graph, universally
+/// rigid on a generic configuration, thesis §2.5), united with the links of every agent to its
+/// `k` nearest agents. Leaders: the first `D + 1` agents. These are the families of the
+/// robustness sweep (issue 11): sparse candidate graphs just above the rigidity threshold.
+///
+/// # Panics
+/// If `n < D + 1` or `D` is not 1, 2 or 3.
+pub fn backbone(n: usize, extents: &[f64], k: usize, rng: &mut impl Rng) -> Candidate {
+    let dim = extents.len();
+    assert!((1..=3).contains(&dim), "1, 2 or 3 extents");
+    let config = random_config_box(n, extents, rng);
+    let tri = trilateration_links(&config, dim, dim + 1);
+    let links = nearest_neighbour_links(&config, k, &tri);
+    let box_text: Vec<String> = extents.iter().map(|e| format!("{e}")).collect();
+    Candidate {
+        name: format!("backbone-{dim}d-n{n}-k{k}-{}", box_text.join("x")),
+        dim,
+        config,
+        links,
+        leaders: (0..=dim).collect(),
+    }
+}
+
+/// Box shapes of the robustness families ([`family`]); each keeps one agent per unit volume at
+/// scale 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Extent {
+    /// A cube of side `N^(1/D)`.
+    Unit,
+    /// The same cube scaled by 1e-3.
+    Tiny,
+    /// The same cube scaled by 1e3.
+    Huge,
+    /// A box with aspect ratio 10 : 1 (: 1) and the volume of the unit cube.
+    Elongated,
+}
+
+impl Extent {
+    /// All shapes.
+    pub const ALL: [Extent; 4] = [Extent::Unit, Extent::Tiny, Extent::Huge, Extent::Elongated];
+
+    /// The side lengths for `n` agents in `dim` dimensions.
+    pub fn sides(self, n: usize, dim: usize) -> Vec<f64> {
+        let side = (n as f64).powf(1.0 / dim as f64);
+        match self {
+            Extent::Unit => vec![side; dim],
+            Extent::Tiny => vec![1e-3 * side; dim],
+            Extent::Huge => vec![1e3 * side; dim],
+            Extent::Elongated => {
+                let short = side * 10f64.powf(-1.0 / dim as f64);
+                let mut v = vec![short; dim];
+                v[0] = short * 10.0;
+                v
+            }
+        }
+    }
+
+    /// A short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Extent::Unit => "unit",
+            Extent::Tiny => "tiny",
+            Extent::Huge => "huge",
+            Extent::Elongated => "elongated",
+        }
+    }
+}
+
+/// The robustness families of issue 11: one [`backbone`] candidate per combination of `n` in
+/// `sizes`, `D` in `dims`, `k` in `neighbours`, shape in `extents` and seed in `seeds`, each
+/// drawn with its own generator seeded from the combination (so any subset reproduces the same
+/// instances).
+pub fn family(
+    sizes: &[usize],
+    dims: &[usize],
+    neighbours: &[usize],
+    extents: &[Extent],
+    seeds: std::ops::Range<u64>,
+) -> Vec<Candidate> {
+    use rand::SeedableRng;
+    let mut out = Vec::new();
+    for &n in sizes {
+        for &dim in dims {
+            for &k in neighbours {
+                for &shape in extents {
+                    for seed in seeds.clone() {
+                        let key = (n as u64) << 40
+                            ^ (dim as u64) << 36
+                            ^ (k as u64) << 30
+                            ^ (shape as u64) << 26
+                            ^ seed;
+                        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(key);
+                        let mut c = backbone(n, &shape.sides(n, dim), k, &mut rng);
+                        c.name = format!("backbone-{dim}d-n{n}-k{k}-{}-s{seed}", shape.name());
+                        out.push(c);
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The 7-agent example of S. Zhao, "Affine formation maneuver control of multiagent systems",
+/// IEEE TAC 63(12), 2018, §VII (simulation; the nominal configuration and stress of its Fig. 3):
+/// a hexagon-like configuration `(2, 0), (1, 1), (1, −1), (0, 1), (0, −1), (−1, 1), (−1, −1)`,
+/// twelve links, leaders 0, 1, 2 (Zhao's agents 1–3). Leaders 1 and 2 are **not** linked, and
+/// agents 1, 3, 5 (and 2, 4, 6) are collinear, so the configuration is not in general position;
+/// its stress space is one-dimensional (12 links, rigidity rank 2·7 − 3 = 11) and the unique
+/// stress is positive semidefinite with rank `N − D − 1 = 4`.
+///
+/// Source: we could not read the paper itself here; configuration and links are transcribed from
+/// the public MATLAB reproduction of that simulation, `star2dust/paper-simulation`,
+/// `Zhao2018Affine/affine_formation.m` (incidence matrix `D`, 7 × 12; configuration `r`), whose
+/// comment states that the stress it computes is the one of the paper's Fig. 3. Indices are
+/// 0-based here (Zhao's agent i is our i − 1).
+pub fn zhao7_candidate() -> Candidate {
+    let config = vec![
+        vec![2.0, 0.0],
+        vec![1.0, 1.0],
+        vec![1.0, -1.0],
+        vec![0.0, 1.0],
+        vec![0.0, -1.0],
+        vec![-1.0, 1.0],
+        vec![-1.0, -1.0],
+    ];
+    // Columns of Zhao's incidence matrix, 1-based: 1–2, 1–3, 3–5, 5–7, 6–7, 4–6, 2–4, 2–7, 3–6,
+    // 1–4, 4–5, 1–5.
+    let mut links = vec![
+        (0, 1),
+        (0, 2),
+        (2, 4),
+        (4, 6),
+        (5, 6),
+        (3, 5),
+        (1, 3),
+        (1, 6),
+        (2, 5),
+        (0, 3),
+        (3, 4),
+        (0, 4),
+    ];
+    links.sort_unstable();
+    Candidate {
+        name: "zhao7".into(),
+        dim: 2,
+        config,
+        links,
+        leaders: vec![0, 1, 2],
     }
 }
 
@@ -226,5 +389,27 @@ mod tests {
         assert_eq!(hexagon3d_candidate().links.len(), 6 + 4 + 5 * 6);
         let same = trilateration(20, 2, 3, &mut Xoshiro256PlusPlus::seed_from_u64(1));
         assert_eq!(same, c, "seeded generators are reproducible");
+        // Backbone: D + 1 earlier neighbours per agent, then nearest neighbours on top.
+        let b0 = backbone(
+            30,
+            &[5.0, 5.0],
+            0,
+            &mut Xoshiro256PlusPlus::seed_from_u64(3),
+        );
+        assert_eq!(b0.links.len(), 3 + 3 * 27);
+        let b4 = backbone(
+            30,
+            &[5.0, 5.0],
+            4,
+            &mut Xoshiro256PlusPlus::seed_from_u64(3),
+        );
+        assert!(b4.links.len() > b0.links.len());
+        assert!(b0.links.iter().all(|l| b4.links.contains(l)));
+        let z = zhao7_candidate();
+        assert_eq!(z.links.len(), 12);
+        assert!(
+            !z.links.contains(&(1, 2)),
+            "Zhao's leaders 2 and 3 are not linked"
+        );
     }
 }

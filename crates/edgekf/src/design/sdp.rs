@@ -26,10 +26,11 @@
 
 use nalgebra::DVector;
 
+use super::barrier;
 #[cfg(feature = "clarabel")]
 use super::conic;
-use super::ipm::{self, Mode, Problem};
-use super::{finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
+use super::ipm::{self, Mode};
+use super::{finish, validate, Candidate, Design, DesignError, Finish, SolverStatus, StressSpace};
 
 /// Which bounded form of thesis (3.5) to solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,63 +81,235 @@ impl Default for SdpOptions {
     }
 }
 
-/// Clarabel's duality-gap tolerance for the conditioning SDP. Clarabel receives it in the form
-/// `min t` s.t. `I ⪯ Q L Qᵀ ⪯ t I` (see `conic`), whose objective `t = κ* ≥ 1` makes its relative
-/// gap a relative accuracy of the optimal ratio: the IPM's default 1e-6.
+/// Clarabel's duality-gap tolerance for the thesis-gap form of (3.5) (its gap is relative to
+/// `max(1, |λ|)`). The conditioning SDP goes to Clarabel in the form `min t` s.t.
+/// `I ⪯ Q L Qᵀ ⪯ t I` (see `conic`), whose objective `t = κ* ≥ 1` makes its relative gap a
+/// relative accuracy of the optimal ratio; it gets a tenth of the requested accuracy.
 #[cfg(feature = "clarabel")]
 pub(crate) const CLARABEL_GAP: f64 = 1e-6;
 
-/// Largest eigenvalue ratio we accept as "nonzero": a stress with `λ_max / λ_min > 1e8` cannot
-/// be told from a singular one by the rank test (relative tolerance 1e-9 N) of the checks.
+/// Largest eigenvalue ratio `λ_max / λ_min` of `Q L Qᵀ` accepted for N agents: `1e8 / N`. The
+/// rank test of the checks (and of `Framework::new`) counts an eigenvalue as zero below
+/// `1e-9 · N · λ_max`; a stress with a larger ratio cannot be told from a singular one, with a
+/// factor 10 to spare. Above it a framework is refused as (numerically) not universally rigid.
+pub fn max_condition(agents: usize) -> f64 {
+    MAX_CONDITION / agents.max(1) as f64
+}
+
+/// The ratio bound of [`max_condition`] for one agent.
 pub const MAX_CONDITION: f64 = 1e8;
 
-/// Result of the conditioning SDP on a stress space: weights `w` (in link order), the achieved
-/// ratio `λ_max / λ_min` of `Q L Qᵀ`, and the Newton steps.
+/// The best-conditioned stress on a stress space and how it was found.
+#[derive(Debug, Clone)]
+pub(crate) struct Conditioned {
+    /// Weights, in link order.
+    pub w: DVector<f64>,
+    /// Achieved `λ_max / λ_min` of `Q L Qᵀ` (`1 / s`).
+    pub ratio: f64,
+    /// Iterations (primal–dual iterations plus fallback Newton steps; Clarabel iterations).
+    pub iterations: usize,
+    /// The solver that produced `w`.
+    pub solver: &'static str,
+    /// Relative optimality gap `(s̄ − s) / s` for the certified upper bound `s̄ ≥ s*`.
+    pub gap: f64,
+}
+
+/// The conditioning SDP `max s` s.t. `s Π ⪯ L(w) ⪯ Π` on a stress space: the best-conditioned
+/// stress, or the certified refusal `s* < 1e-8` (not universally rigid).
+///
+/// `rel_tol` is the relative accuracy asked of the optimal ratio.
 pub(crate) fn best_conditioned(
     space: &StressSpace,
     expected_rank: usize,
     solver: SdpSolver,
-) -> Result<(DVector<f64>, f64, usize), DesignError> {
+    rel_tol: f64,
+) -> Result<Conditioned, DesignError> {
     if space.z.ncols() == 0 {
         return Err(DesignError::NotUniversallyRigid(
             "the graph carries no nonzero equilibrium stress (the only w with L(w) [P 1] = 0 is w = 0)"
                 .into(),
         ));
     }
-    let problem = Problem::new(space, Mode::Condition);
-    let m = space.z.ncols();
-    let mut x0 = DVector::zeros(m + 1);
-    x0[m] = -1.0;
-    let floor = 1.0 / MAX_CONDITION;
-    let rel = SdpOptions::default().rel_tol;
-    let (x, gap, steps) = match solver {
-        SdpSolver::Ipm => {
-            let out = ipm::solve(&problem, x0, |x, gap| {
-                let s = x[m];
-                (s > 0.0 && gap <= rel * s) || s + gap < floor
-            })?;
-            (out.x, out.gap, out.newton_steps)
-        }
+    let agents = space.agents();
+    let floor = 1.0 / max_condition(agents);
+    let not_rigid = |upper: f64| {
+        DesignError::NotUniversallyRigid(format!(
+            "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph \
+             (the best λ_min/λ_max of Q L Qᵀ is at most {:.1e} < 1e-8·N = {floor:.1e}, below \
+             which the rank test cannot tell it from a singular stress)",
+            upper.max(0.0)
+        ))
+    };
+    match solver {
+        SdpSolver::Ipm => conditioning_ipm(space, rel_tol, not_rigid),
         #[cfg(feature = "clarabel")]
         SdpSolver::Clarabel => {
-            // x = (c, t) with I ⪯ M(c) ⪯ t I: the same weights up to the scale 1/t, s = 1/t.
-            let out = conic::solve(space, &Mode::Condition, CLARABEL_GAP)?;
-            let mut x = out.x;
-            let t = x[m];
-            x /= t;
-            x[m] = 1.0 / t;
-            (x, out.gap / (t * t), out.iterations)
+            // y = (c, t) with I ⪯ M(c) ⪯ t I: the same weights up to the scale 1/t, s = 1/t.
+            let m = space.z.ncols();
+            // A tenth of the requested accuracy: Clarabel's stopping rule left its ratio up to
+            // 1.4e-6 above the optimum at tolerance 1e-6 (measured on the robustness families).
+            // Where it cannot get there (status AlmostSolved), the requested accuracy itself.
+            let out = match conic::solve(space, &Mode::Condition, 0.1 * rel_tol) {
+                Err(DesignError::Solver {
+                    status: SolverStatus::Clarabel("AlmostSolved"),
+                    ..
+                }) => conic::solve(space, &Mode::Condition, rel_tol)?,
+                other => other?,
+            };
+            let t = out.x[m];
+            let t_lo = (t - out.gap).max(1.0);
+            Ok(Conditioned {
+                w: &space.z * out.x.rows(0, m),
+                ratio: t,
+                iterations: out.iterations,
+                solver: "clarabel",
+                gap: (t - t_lo) / t_lo,
+            })
         }
-    };
-    let s = x[m];
-    if s < floor {
-        return Err(DesignError::NotUniversallyRigid(format!(
-            "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph \
-             (the best λ_min/λ_max of Q L Qᵀ is {:.1e} ≤ {floor:.0e})",
-            (s + gap).max(0.0)
-        )));
     }
-    Ok((problem.weights(&x), 1.0 / s, steps))
+}
+
+use ipm::PINF;
+
+/// The conditioning SDP by the default solver, in two phases of the primal–dual method
+/// ([`ipm`]):
+///
+/// 1. `max s` s.t. `s Π ⪯ L(w) ⪯ Π` from the strictly feasible `c = 0, s = −1`, until either the
+///    upper bound certifies `s* < 1e-8` (not universally rigid) or `s > 1e-8` with `s* ≤ 1.5 s`;
+/// 2. the same problem in the scale `λ_min = 1`: `min t` s.t. `Π ⪯ L(w) ⪯ t Π`, started at
+///    `(c/s, 1/s)` with the primal iterate scaled alike (the change of scale maps the central path
+///    of one form onto the other, so the warm start stays centred), until `t` is within
+///    `rel_tol` of the certified lower bound. Phase 1 alone would ask for an absolute gap of
+///    `1e-6 s*` in a problem of scale 1, below what double precision delivers when `s* ≲ 1e-4`
+///    (measured: it stalls at relative gaps of 1e-4–1e-3 there); in phase 2 the same relative
+///    accuracy is a relative gap of the objective.
+///
+/// If a phase stalls, the barrier method ([`super::barrier`]) continues from the best point;
+/// the best strictly feasible point found is returned with its certified gap (every such point
+/// is a valid stress).
+fn conditioning_ipm(
+    space: &StressSpace,
+    rel: f64,
+    not_rigid: impl Fn(f64) -> DesignError,
+) -> Result<Conditioned, DesignError> {
+    let m = space.z.ncols();
+    let floor = 1.0 / max_condition(space.agents());
+    let breakdown = |iterations| DesignError::Solver {
+        status: SolverStatus::NumericalBreakdown,
+        iterations,
+    };
+
+    // Phase 1.
+    let p1 = ipm::Problem::new(space, &Mode::Condition);
+    let mut y0 = DVector::zeros(m + 1);
+    y0[m] = -1.0;
+    let phase1_done = |lo: f64, up: f64| (lo > floor && up - lo <= 0.5 * lo) || up < floor;
+    let out1 = ipm::solve(&p1, y0.clone(), None, |_, b| {
+        b.pinf <= PINF && phase1_done(b.dobj, b.upper)
+    })
+    .ok_or(breakdown(0))?;
+    let mut iterations = out1.iterations;
+    let mut s_upper = if out1.bounds.pinf <= PINF {
+        out1.bounds.upper
+    } else {
+        f64::INFINITY
+    };
+    let (mut y1, mut s1, mut warm) = (out1.y, out1.bounds.dobj, Some(out1.primal));
+    let mut solver = "primal-dual";
+    if !(s1 > floor || s_upper < floor) {
+        let fb = barrier_condition(space, &y1, &y0, barrier::RESCUE_STEPS, phase1_done);
+        if let Some((y, s, upper, steps)) = fb {
+            iterations += steps;
+            s_upper = s_upper.min(upper);
+            if s > s1 {
+                (y1, s1, warm, solver) = (y, s, None, "barrier (fallback)");
+            }
+        }
+    }
+    if s_upper < floor {
+        return Err(not_rigid(s_upper));
+    }
+    if s1 <= floor {
+        // Neither a stress with s > 1e-8 nor a bound below it: both methods stalled in between.
+        return Err(DesignError::Solver {
+            status: SolverStatus::Stalled {
+                lower: s1,
+                upper: s_upper,
+            },
+            iterations,
+        });
+    }
+
+    // Phase 2.
+    let p2 = ipm::Problem::ratio(space);
+    let mut y2 = &y1 / s1;
+    y2[m] = 1.0 / s1;
+    let warm = warm.map(|p| {
+        let scale = 1.0 / p.x[1].trace();
+        ipm::Primal {
+            x: p.x.iter().map(|x| x * scale).collect(),
+            xl: p.xl * scale,
+        }
+    });
+    let mut t_lo = (1.0 / s_upper).max(1.0);
+    let (mut best_y, mut best_t) = (y2.clone(), 1.0 / s1);
+    if let Some(out2) = ipm::solve(&p2, y2, warm, |_, b| {
+        b.pinf <= PINF && b.upper - b.dobj <= rel * (-b.upper).max(1.0)
+    }) {
+        iterations += out2.iterations;
+        if out2.bounds.pinf <= PINF {
+            t_lo = t_lo.max(-out2.bounds.upper);
+        }
+        if -out2.bounds.dobj < best_t {
+            (best_y, best_t) = (out2.y, -out2.bounds.dobj);
+            solver = "primal-dual";
+        }
+    }
+    if best_t - t_lo > 1e-3 * t_lo {
+        // Phase 2 stalled far from the tolerance: the barrier method on the s-form from the best
+        // point. (Closer than 1e-3 the barrier does no better: its own round-off floor.)
+        let mut y = &best_y / best_t;
+        y[m] = 1.0 / best_t;
+        let accept = |lo: f64, up: f64| lo > 0.0 && up - lo <= rel * lo;
+        let polish = barrier_condition(space, &y, &y0, barrier::POLISH_STEPS, accept);
+        if let Some((yb, s, upper, steps)) = polish {
+            iterations += steps;
+            t_lo = t_lo.max(1.0 / upper);
+            if 1.0 / s < best_t {
+                best_t = 1.0 / s;
+                best_y = &yb / s;
+                best_y[m] = best_t;
+                solver = "barrier (fallback)";
+            }
+        }
+    }
+    Ok(Conditioned {
+        w: &space.z * best_y.rows(0, m),
+        ratio: best_t,
+        iterations,
+        solver,
+        gap: ((best_t - t_lo) / t_lo).max(0.0),
+    })
+}
+
+/// The barrier method on the s-form `max s` s.t. `s Π ⪯ L(w) ⪯ Π`, from `start` (or `fallback`
+/// if the barrier's own feasibility test puts `start` on the boundary), stopped by
+/// `accept(s, s̄)` or after `budget` Newton steps. Returns its last iterate, `s`, the certified upper bound `s̄` and the
+/// Newton steps.
+fn barrier_condition(
+    space: &StressSpace,
+    start: &DVector<f64>,
+    fallback: &DVector<f64>,
+    budget: usize,
+    accept: impl Fn(f64, f64) -> bool,
+) -> Option<(DVector<f64>, f64, f64, usize)> {
+    let m = space.z.ncols();
+    let bp = barrier::Problem::new(space, Mode::Condition);
+    let stop = |x: &DVector<f64>, gap: f64| accept(x[m], x[m] + gap);
+    let out = barrier::solve(&bp, start.clone(), budget, stop)
+        .or_else(|| barrier::solve(&bp, fallback.clone(), budget, stop))?;
+    let s = out.x[m];
+    Some((out.x, s, -out.lower_bound, out.newton_steps))
 }
 
 /// [`best_conditioned`], with the closed-form optimum on complete graphs.
@@ -147,12 +320,19 @@ pub(crate) fn conditioned(
     space: &StressSpace,
     expected_rank: usize,
     solver: SdpSolver,
-) -> Result<(DVector<f64>, f64, usize), DesignError> {
+    rel_tol: f64,
+) -> Result<Conditioned, DesignError> {
     let n = flat.len() / dim;
     if links.len() == n * (n - 1) / 2 {
-        Ok((complete_graph_optimum(flat, dim, links), 1.0, 0))
+        Ok(Conditioned {
+            w: complete_graph_optimum(flat, dim, links),
+            ratio: 1.0,
+            iterations: 0,
+            solver: "closed form",
+            gap: 0.0,
+        })
     } else {
-        best_conditioned(space, expected_rank, solver)
+        best_conditioned(space, expected_rank, solver, rel_tol)
     }
 }
 
@@ -194,30 +374,41 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
     let flat = validate(candidate)?;
     let graph = crate::graph::Graph::new(candidate.config.len(), &candidate.links)?;
     let links = graph.links().to_vec();
-    let space = StressSpace::new(&flat, candidate.dim, &links)?;
+    let n = candidate.config.len();
+    let complete = links.len() == n * (n - 1) / 2;
+    // A complete graph under the conditioning objective has its optimum in closed form: no
+    // stress basis (its L × m matrix is large: 499 500 × 497 503 for N = 1000).
+    let space = if complete && options.objective == SdpObjective::Conditioning {
+        StressSpace::without_stresses(&flat, candidate.dim, &links)?
+    } else {
+        StressSpace::new(&flat, candidate.dim, &links)?
+    };
     let expected_rank = candidate.config.len() - candidate.dim - 1;
     // Below 1e-10 of the largest weight a link changes L by less than the checks' tolerance.
     const DROP: f64 = 1e-10;
     match options.objective {
         SdpObjective::Conditioning => {
-            let (w, _, steps) = conditioned(
+            let best = conditioned(
                 &flat,
                 candidate.dim,
                 &links,
                 &space,
                 expected_rank,
                 options.solver,
+                options.rel_tol,
             )?;
             finish(
                 candidate,
                 &links,
-                w.as_slice(),
+                best.w.as_slice(),
                 &space,
                 Finish {
                     drop_rel: DROP,
                     normalise: true,
                     method: "sdp",
-                    newton_steps: steps,
+                    newton_steps: best.iterations,
+                    solver: best.solver,
+                    gap: best.gap,
                 },
             )
         }
@@ -241,18 +432,16 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
             };
             let m = space.z.ncols();
             let scale = lambda_bar.min(weight_bound);
-            let floor = scale / MAX_CONDITION;
-            let (x, steps) = match options.solver {
+            let floor = scale / max_condition(candidate.config.len());
+            let rel = options.rel_tol;
+            let (y, lower, upper, iterations, name) = match options.solver {
                 SdpSolver::Ipm => {
-                    let problem = Problem::new(&space, mode);
-                    let mut x0 = DVector::zeros(m + 1);
-                    x0[m] = -lambda_bar.min(1.0);
-                    let rel = options.rel_tol;
-                    let out = ipm::solve(&problem, x0, |x, gap| {
-                        let s = x[m];
-                        (s > 0.0 && gap <= rel * s) || s + gap < floor
+                    let mut y0 = DVector::zeros(m + 1);
+                    y0[m] = -lambda_bar.min(1.0);
+                    let out = ipm::solve_robust(&space, mode, y0, |lo, up| {
+                        (lo > 0.0 && up - lo <= rel * lo) || up < floor
                     })?;
-                    (out.x, out.newton_steps)
+                    (out.y, out.lower, out.upper, out.iterations, out.solver)
                 }
                 #[cfg(feature = "clarabel")]
                 SdpSolver::Clarabel => {
@@ -260,15 +449,22 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                     // most rel_tol (1e-6), and never coarser than the acceptance floor allows.
                     let tol = options.rel_tol.min(CLARABEL_GAP.max(1e-2 * floor));
                     let out = conic::solve(&space, &mode, tol)?;
-                    (out.x, out.iterations)
+                    let s = out.x[m];
+                    (out.x, s, s + out.gap, out.iterations, "clarabel")
                 }
             };
-            if x[m] < floor {
+            if upper < floor {
                 return Err(DesignError::NotUniversallyRigid(format!(
                     "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph"
                 )));
             }
-            let w = &space.z * x.rows(0, m);
+            if lower <= floor {
+                return Err(DesignError::Solver {
+                    status: SolverStatus::Stalled { lower, upper },
+                    iterations,
+                });
+            }
+            let w = &space.z * y.rows(0, m);
             finish(
                 candidate,
                 &links,
@@ -278,7 +474,9 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                     drop_rel: DROP,
                     normalise: false,
                     method: "sdp",
-                    newton_steps: steps,
+                    newton_steps: iterations,
+                    solver: name,
+                    gap: ((upper - lower) / lower).max(0.0),
                 },
             )
         }
@@ -298,8 +496,9 @@ mod tests {
         let c = generators::complete("k7", 2, config);
         let flat: Vec<f64> = c.config.iter().flatten().copied().collect();
         let space = StressSpace::new(&flat, 2, &c.links).unwrap();
-        let (w_ipm, ratio, steps) = best_conditioned(&space, 4, SdpSolver::Ipm).unwrap();
-        assert!(steps > 0);
+        let best = best_conditioned(&space, 4, SdpSolver::Ipm, 1e-6).unwrap();
+        let (w_ipm, ratio) = (best.w, best.ratio);
+        assert!(best.iterations > 0);
         // Optimal ratio 1; the solver stops at relative gap 1e-6 on s = 1/ratio.
         assert!((ratio - 1.0).abs() < 1e-5, "{ratio}");
         // Same weights as the projector, up to the scale and the solver accuracy.

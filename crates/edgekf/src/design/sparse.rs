@@ -10,7 +10,8 @@
 //!    The lower bound keeps the rank `N − D − 1` and fixes the scale (the convergence rate); the
 //!    upper bound keeps the design from trading all of its conditioning for sparsity. `slack`
 //!    is the one knob: larger means sparser and slower. Links among the leaders are not
-//!    penalised (they must stay, Theorem 3.3).
+//!    penalised, so candidates that link the leaders keep those links (the distance-based
+//!    leader law of thesis §3.5 needs them; a stress itself does not depend on who leads).
 //! 3. Links with `|w_l|` below `threshold · max |w|` are dropped; on the remaining support the
 //!    conditioning SDP is solved again ("polish"), which re-certifies universal rigidity of the
 //!    reduced graph and gives the best weights on it. If the support is too small (the polish
@@ -24,7 +25,7 @@ use nalgebra::DVector;
 
 #[cfg(feature = "clarabel")]
 use super::conic;
-use super::ipm::{self, Mode, Problem};
+use super::ipm::{self, Mode};
 use super::sdp::{best_conditioned, conditioned, SdpSolver};
 use super::{finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
 use crate::graph::Graph;
@@ -73,66 +74,65 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     let links = graph.links().to_vec();
     let space = StressSpace::new(&flat, candidate.dim, &links)?;
     let expected_rank = n - candidate.dim - 1;
-    let (w0, kappa0, steps0) = conditioned(
+    let rel_tol = super::sdp::SdpOptions::default().rel_tol;
+    let first = conditioned(
         &flat,
         candidate.dim,
         &links,
         &space,
         expected_rank,
         options.solver,
+        rel_tol,
     )?;
     // Scale the start so that its spectrum [λ_min, κ0 λ_min] sits strictly inside [1, κ̄]:
     // λ_min = √slack > 1 and κ0 √slack < slack κ0 = κ̄.
-    let eig = space.projected(w0.as_slice()).symmetric_eigen().eigenvalues;
-    let lmin = eig.min();
-    let kappa_start = eig.max() / lmin;
-    let kappa_bar = options.slack * kappa0.max(kappa_start);
-    let w_start = &w0 * (options.slack.sqrt() / lmin);
+    let w0 = &first.w;
+    let eig = space.spectrum(w0.as_slice());
+    let lmin = eig[0];
+    let kappa_start = eig[eig.len() - 1] / lmin;
+    let kappa_bar = options.slack * first.ratio.max(kappa_start);
+    let w_start = w0 * (options.slack.sqrt() / lmin);
+    // Links among the leaders are not penalised: when the candidates hold them, the design keeps
+    // them (the distance-based leader law needs the leaders linked; target tracking does not).
     let is_leader_link =
         |&(i, j): &(usize, usize)| candidate.leaders.contains(&i) && candidate.leaders.contains(&j);
     let penalised: Vec<bool> = links.iter().map(|l| !is_leader_link(l)).collect();
-    let problem = Problem::new(
-        &space,
-        Mode::L1 {
-            kappa: kappa_bar,
-            penalised: penalised.clone(),
-        },
-    );
+    let mode = Mode::L1 {
+        kappa: kappa_bar,
+        penalised: penalised.clone(),
+    };
     let m = space.z.ncols();
     let npen = penalised.iter().filter(|&&p| p).count();
     let mean_abs = w_start.iter().map(|v| v.abs()).sum::<f64>() / links.len() as f64;
-    let mut x0 = DVector::zeros(m + npen);
-    x0.rows_mut(0, m)
-        .copy_from(&(space.z.transpose() * &w_start));
+    let mut y0 = DVector::zeros(m + npen);
+    y0.rows_mut(0, m).copy_from(&(space.z.tr_mul(&w_start)));
     let mut k = 0;
     for (l, &p) in penalised.iter().enumerate() {
         if p {
-            x0[m + k] = w_start[l].abs() + mean_abs;
+            y0[m + k] = w_start[l].abs() + mean_abs;
             k += 1;
         }
     }
-    let (x, l1_steps) = match options.solver {
+    let (y, l1_steps, l1_gap) = match options.solver {
         SdpSolver::Ipm => {
-            let out = ipm::solve(&problem, x0, |x, gap| {
-                gap <= 1e-7 * problem.objective(x).abs().max(f64::MIN_POSITIVE)
-            })?;
-            (out.x, out.newton_steps)
+            // Every iterate is a strictly feasible stress with spectrum in [1, κ̄], so a solve
+            // that stops short of the tolerance still gives a valid (less sparse) support.
+            let out = ipm::solve_robust(&space, mode, y0, |lo, up| up - lo <= 1e-7 * lo.abs())?;
+            let gap = (out.upper - out.lower) / out.lower.abs().max(f64::MIN_POSITIVE);
+            (out.y, out.iterations, gap)
         }
         #[cfg(feature = "clarabel")]
         SdpSolver::Clarabel => {
             // Clarabel's default gap tolerance, 1e-8 relative to max(1, ℓ1 norm): at least as
             // tight as the IPM's 1e-7 relative.
-            let mode = Mode::L1 {
-                kappa: kappa_bar,
-                penalised: penalised.clone(),
-            };
             let out = conic::solve(&space, &mode, 1e-8)?;
-            (out.x, out.iterations)
+            let gap = out.gap / out.x.rows(m, npen).sum().abs().max(f64::MIN_POSITIVE);
+            (out.x, out.iterations, gap)
         }
     };
-    let w = problem.weights(&x);
+    let w = &space.z * y.rows(0, m);
     let wmax = w.amax();
-    let mut steps = steps0 + l1_steps;
+    let mut steps = first.iterations + l1_steps;
     let mut threshold = options.threshold;
     for _ in 0..4 {
         let support: Vec<(usize, usize)> = links
@@ -145,22 +145,24 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
             .map_err(DesignError::from)
             .and_then(|_| StressSpace::new(&flat, candidate.dim, &support))
             .and_then(|sub| {
-                let (ws, _, st) = best_conditioned(&sub, expected_rank, options.solver)?;
-                Ok((sub, ws, st))
+                let best = best_conditioned(&sub, expected_rank, options.solver, rel_tol)?;
+                Ok((sub, best))
             });
         match polished {
-            Ok((sub, ws, st)) => {
-                steps += st;
+            Ok((sub, best)) => {
+                steps += best.iterations;
                 return finish(
                     candidate,
                     &support,
-                    ws.as_slice(),
+                    best.w.as_slice(),
                     &sub,
                     Finish {
                         drop_rel: 1e-10,
                         normalise: true,
                         method: "sparse",
                         newton_steps: steps,
+                        solver: best.solver,
+                        gap: best.gap,
                     },
                 );
             }
@@ -171,7 +173,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
         }
     }
     // The ℓ1 weights themselves are a valid stress on all candidates; return them if no
-    // thresholded support could be certified.
+    // thresholded support could be certified (the gap is then the ℓ1 solve's).
     finish(
         candidate,
         &links,
@@ -182,6 +184,8 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
             normalise: true,
             method: "sparse",
             newton_steps: steps,
+            solver: first.solver,
+            gap: l1_gap,
         },
     )
 }

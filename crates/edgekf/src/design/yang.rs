@@ -36,7 +36,7 @@ use super::{
 /// # Errors
 /// [`DesignError::NonGeneric`] when some `D + 2` consecutive agents lie in a common affine
 /// hyperplane (their null space is not one-dimensional) or a null vector starts with zero
-/// (the rank would drop); framework errors when the leaders are not linked by the band.
+/// (the rank would drop).
 ///
 /// ```
 /// use edgekf::design::{generators, yang};
@@ -99,6 +99,8 @@ pub fn design(candidate: &Candidate) -> Result<Design, DesignError> {
             normalise: true,
             method: "yang",
             newton_steps: 0,
+            solver: "construction",
+            gap: 0.0,
         },
     )
 }
