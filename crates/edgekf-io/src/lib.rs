@@ -1,0 +1,365 @@
+//! edgekf's files, shared by the command-line program and the Python package: reading scenario
+//! and framework files (with the errors naming file, key and problem), the tidy result tables of
+//! the output contract (`docs/formats.md`) as text, and writing them atomically (every file
+//! through a temporary name and a rename, and only after the study succeeded).
+//!
+//! The library (`edgekf`) stays free of I/O; this crate is the one place both front ends write
+//! `scenario.json`, `metrics.csv`, `paths.csv`, `inputs.csv` and `status.csv`, so that a result
+//! saved from Python is byte-identical to the CLI's.
+#![warn(missing_docs)]
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use edgekf::scenario::{FrameworkSpec, Resolved, Scenario, ScenarioSpec};
+use edgekf::sim::sweep::SweepResults;
+use edgekf::sim::{Outcome, Results};
+
+/// Which kind of study a scenario text describes.
+pub enum Kind {
+    /// Edge filters (`edgekf.scenario/1`).
+    Filters,
+    /// The distributed SLAM observer (`kind = "slam"`, `edgekf.slam/1`).
+    Slam,
+}
+
+/// Detects the kind of a scenario text.
+pub fn kind_of(text: &str) -> Kind {
+    let t = text.trim_start();
+    if t.starts_with('{') {
+        match serde_json::from_str::<serde_json::Value>(t) {
+            Ok(v) if v.get("schema").and_then(|s| s.as_str()) == Some("edgekf.slam/1") => {
+                Kind::Slam
+            }
+            _ => Kind::Filters,
+        }
+    } else {
+        match toml::from_str::<toml::Table>(t) {
+            Ok(v) if v.get("kind").and_then(|s| s.as_str()) == Some("slam") => Kind::Slam,
+            _ => Kind::Filters,
+        }
+    }
+}
+
+/// Parses and checks a filter scenario (TOML or resolved JSON). `source` names it in errors;
+/// `base` is the directory relative paths (`framework.file`) are resolved against, if any.
+pub fn load_scenario(source: &str, text: &str, base: Option<&Path>) -> Result<Scenario> {
+    load_scenario_with(source, text, &|rel: &str| framework_at(base, rel))
+}
+
+/// [`load_scenario`] with `framework.file` resolved by `framework` (e.g. from the framework
+/// files embedded with the reproductions).
+///
+/// # Errors
+/// As [`load_scenario`].
+pub fn load_scenario_with(
+    source: &str,
+    text: &str,
+    framework: &dyn Fn(&str) -> Result<FrameworkSpec>,
+) -> Result<Scenario> {
+    if text.trim_start().starts_with('{') {
+        let r: Resolved = serde_json::from_str(text)
+            .with_context(|| format!("{source}: not a valid resolved scenario"))?;
+        return Scenario::from_resolved(&r).with_context(|| format!("{source}: invalid scenario"));
+    }
+    let spec: ScenarioSpec = toml::from_str(text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    scenario_from_spec_with(source, &spec, framework)
+}
+
+/// The framework file `rel`, relative to `base` if given.
+fn framework_at(base: Option<&Path>, rel: &str) -> Result<FrameworkSpec> {
+    let path = base.map_or_else(|| PathBuf::from(rel), |b| b.join(rel));
+    load_framework_file(&path)
+}
+
+/// Parses and checks a filter scenario given as a JSON object: a resolved scenario (it has a
+/// `schema` key) or the keys of a TOML scenario file (how the Python package passes a dict).
+///
+/// # Errors
+/// As [`load_scenario`]: the message names `source`, the key and the problem.
+pub fn load_scenario_json(source: &str, text: &str, base: Option<&Path>) -> Result<Scenario> {
+    let v: serde_json::Value =
+        serde_json::from_str(text).with_context(|| format!("{source}: not a JSON object"))?;
+    if !v.is_object() {
+        bail!("{source}: a scenario is a table of keys, got `{v}`");
+    }
+    if v.get("schema").is_some() {
+        return load_scenario(source, text.trim_start(), base);
+    }
+    let spec: ScenarioSpec =
+        serde_json::from_value(v).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    scenario_from_spec(source, &spec, base)
+}
+
+/// Checks a parsed scenario, reading its framework file (`framework.file`, relative to `base`)
+/// if it names one.
+///
+/// # Errors
+/// An unreadable framework file or a scenario that fails its checks; the message names `source`.
+pub fn scenario_from_spec(
+    source: &str,
+    spec: &ScenarioSpec,
+    base: Option<&Path>,
+) -> Result<Scenario> {
+    scenario_from_spec_with(source, spec, &|rel: &str| framework_at(base, rel))
+}
+
+/// [`scenario_from_spec`] with `framework.file` resolved by `framework`.
+fn scenario_from_spec_with(
+    source: &str,
+    spec: &ScenarioSpec,
+    framework: &dyn Fn(&str) -> Result<FrameworkSpec>,
+) -> Result<Scenario> {
+    let file = match &spec.framework.file {
+        Some(rel) => {
+            Some(framework(rel).with_context(|| format!("{source}: key `framework.file`"))?)
+        }
+        None => None,
+    };
+    Scenario::from_spec(spec, file.as_ref()).with_context(|| format!("{source}: invalid scenario"))
+}
+
+/// Reads a framework file into the inline framework form.
+pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec> {
+    let text = fs::read_to_string(path)
+        .with_context(|| format!("cannot read framework file {}", path.display()))?;
+    FrameworkSpec::from_framework_json(&text)
+        .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
+}
+
+/// Files staged under temporary names in a directory and moved into place together once every
+/// one of them has been written; on drop, whatever was not committed is removed.
+pub struct Staged {
+    dir: PathBuf,
+    files: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Staged {
+    /// Stages into `dir` (created if needed).
+    pub fn new(dir: &Path) -> Result<Self> {
+        fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            files: Vec::new(),
+        })
+    }
+
+    /// The temporary path for `name` (for writers that need a path, such as the plots).
+    pub fn path(&mut self, name: &str) -> PathBuf {
+        // Keep the extension last: image encoders pick the format from it.
+        let tmp = match name.rsplit_once('.') {
+            Some((stem, ext)) => self.dir.join(format!(".{stem}.tmp.{ext}")),
+            None => self.dir.join(format!(".{name}.tmp")),
+        };
+        self.files.push((tmp.clone(), self.dir.join(name)));
+        tmp
+    }
+
+    /// Stages `bytes` as `name`.
+    pub fn write(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        let tmp = self.path(name);
+        fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))
+    }
+
+    /// Moves every staged file into place.
+    pub fn commit(mut self) -> Result<()> {
+        for (tmp, dest) in std::mem::take(&mut self.files) {
+            fs::rename(&tmp, &dest)
+                .with_context(|| format!("cannot move {} into place", tmp.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.files {
+            let _ = fs::remove_file(tmp);
+        }
+    }
+}
+
+/// `metrics.csv` (the output contract, docs/formats.md): `estimator,step,time,metric,mean,std`, one row per
+/// estimator, valid reported step and metric; mean and std (ddof = 1) across runs, reduced in
+/// run order.
+pub fn metrics_csv(res: &Results) -> String {
+    let runs = res.runs.len();
+    let mut s = String::with_capacity(res.estimators.len() * res.steps.len() * 5 * 64);
+    s.push_str("estimator,step,time,metric,mean,std\n");
+    for e in &res.estimators {
+        for (m, metric) in e.metrics.iter().enumerate() {
+            let ser = edgekf::sim::Series::of(&e.values[m], runs, e.valid);
+            for (k, &step) in res.steps.iter().take(e.valid).enumerate() {
+                let _ = writeln!(
+                    s,
+                    "{},{step},{},{metric},{},{}",
+                    e.label,
+                    step as f64 * res.dt,
+                    ser.mean[k],
+                    ser.std[k]
+                );
+            }
+        }
+    }
+    s
+}
+
+/// `summary.csv` of a sweep (DESIGN.md contract): `estimator,parameter,value,metric,mean,std`,
+/// one row per estimator, value and summary metric, in the order of the values.
+pub fn summary_csv(sw: &SweepResults) -> String {
+    let mut s = String::from("estimator,parameter,value,metric,mean,std\n");
+    for p in 0..sw.points.len() {
+        for row in sw.summary.iter().filter(|r| r.point == p) {
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{},{}",
+                row.estimator, sw.parameter, sw.points[p].label, row.metric, row.mean, row.std
+            );
+        }
+    }
+    s
+}
+
+/// `sweep_metrics.csv`: every value's metrics over time,
+/// `parameter,value,estimator,step,time,metric,mean,std` (the rows of `metrics.csv` per value).
+pub fn sweep_metrics_csv(sw: &SweepResults) -> String {
+    let mut s = String::from("parameter,value,estimator,step,time,metric,mean,std\n");
+    for p in &sw.points {
+        let body = metrics_csv(&p.results);
+        for line in body.lines().skip(1) {
+            let _ = writeln!(s, "{},{},{line}", sw.parameter, p.label);
+        }
+    }
+    s
+}
+
+/// `status.csv`: how each estimator ended, `estimator,status,step,time,run,cause`.
+pub fn status_csv(res: &Results) -> String {
+    let mut s = String::from("estimator,status,step,time,run,cause\n");
+    for e in &res.estimators {
+        match &e.outcome {
+            Outcome::Completed => {
+                let _ = writeln!(s, "{},completed,,,,", e.label);
+            }
+            Outcome::Diverged { step, run, cause } => {
+                let _ = writeln!(
+                    s,
+                    "{},diverged,{step},{},{run},\"{}\"",
+                    e.label,
+                    *step as f64 * res.dt,
+                    cause.replace('"', "'")
+                );
+            }
+        }
+    }
+    s
+}
+
+/// `paths.csv`: positions and inputs of the recorded run at the reports `keep` (indices into
+/// `res.steps`, ascending: [`Scenario::path_reports`]), `estimator,step,time,agent,x,y[,z],ux,uy[,uz]`.
+pub fn paths_csv(res: &Results, dim: usize, agents: usize, keep: &[usize]) -> String {
+    let axes = ["x", "y", "z"];
+    let mut s = String::from("estimator,step,time,agent");
+    for a in axes.iter().take(dim) {
+        s.push(',');
+        s.push_str(a);
+    }
+    for a in axes.iter().take(dim) {
+        s.push_str(",u");
+        s.push_str(a);
+    }
+    s.push('\n');
+    for e in &res.estimators {
+        let reports = e.paths.len() / (agents * dim).max(1);
+        for &k in keep.iter().filter(|&&k| k < reports.min(res.steps.len())) {
+            let step = res.steps[k];
+            for i in 0..agents {
+                let _ = write!(s, "{},{step},{},{i}", e.label, step as f64 * res.dt);
+                for d in 0..dim {
+                    let _ = write!(s, ",{}", e.paths[k * agents * dim + i * dim + d]);
+                }
+                for d in 0..dim {
+                    let v = e
+                        .inputs
+                        .get(k * agents * dim + i * dim + d)
+                        .copied()
+                        .unwrap_or(f64::NAN);
+                    let _ = write!(s, ",{v}");
+                }
+                s.push('\n');
+            }
+        }
+    }
+    s
+}
+
+/// `inputs.csv`: the inputs of the recorded run at every reported step, for the agents of the
+/// scenario's input figures, `estimator,step,time,agent,ux,uy[,uz]`.
+pub fn inputs_csv(res: &Results, dim: usize, agents: usize, of: &[usize]) -> String {
+    let axes = ["x", "y", "z"];
+    let mut s = String::from("estimator,step,time,agent");
+    for a in axes.iter().take(dim) {
+        s.push_str(",u");
+        s.push_str(a);
+    }
+    s.push('\n');
+    for e in &res.estimators {
+        let reports = (e.inputs.len() / (agents * dim).max(1)).min(res.steps.len());
+        for (k, &step) in res.steps.iter().take(reports).enumerate() {
+            for &i in of.iter().filter(|&&i| i < agents) {
+                let _ = write!(s, "{},{step},{},{i}", e.label, step as f64 * res.dt);
+                for d in 0..dim {
+                    let _ = write!(s, ",{}", e.inputs[k * agents * dim + i * dim + d]);
+                }
+                s.push('\n');
+            }
+        }
+    }
+    s
+}
+
+/// `scenario.json`: the resolved scenario (schema `edgekf.scenario/1`), pretty-printed.
+///
+/// # Errors
+/// When the scenario cannot be serialised (not expected for a checked scenario).
+pub fn scenario_json(sc: &Scenario) -> Result<String> {
+    serde_json::to_string_pretty(&sc.to_resolved()).context("cannot serialise the scenario")
+}
+
+/// The agents whose inputs the scenario's input figures show (sorted, without repeats): the
+/// rows of `inputs.csv`.
+pub fn input_agents(sc: &Scenario) -> Vec<usize> {
+    let mut v: Vec<usize> = sc
+        .plots()
+        .iter()
+        .filter_map(|p| match p {
+            edgekf::scenario::PlotSpec::Inputs { agent, .. } => Some(*agent),
+            _ => None,
+        })
+        .collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// Stages the tables of a finished study: `scenario.json`, `metrics.csv`, `paths.csv`,
+/// `inputs.csv` (when the scenario has input figures) and `status.csv`.
+///
+/// # Errors
+/// When a file cannot be written.
+pub fn stage_tables(st: &mut Staged, sc: &Scenario, res: &Results) -> Result<()> {
+    st.write("scenario.json", scenario_json(sc)?.as_bytes())?;
+    st.write("metrics.csv", metrics_csv(res).as_bytes())?;
+    let (dim, agents) = (sc.framework().dim(), sc.framework().agents());
+    st.write(
+        "paths.csv",
+        paths_csv(res, dim, agents, &sc.path_reports()).as_bytes(),
+    )?;
+    let of = input_agents(sc);
+    if !of.is_empty() {
+        st.write("inputs.csv", inputs_csv(res, dim, agents, &of).as_bytes())?;
+    }
+    st.write("status.csv", status_csv(res).as_bytes())
+}
