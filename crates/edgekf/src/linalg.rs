@@ -162,6 +162,20 @@ pub fn psd_factor(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 pub fn batch_gemv_acc(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize) {
     debug_assert_eq!(k.len(), n * n);
     debug_assert!(v.len() >= n * runs && x.len() >= n * runs);
+    if runs == 1 {
+        // One run (large networks): no branch per entry. The sum runs in the same order as
+        // below (adding 0·v leaves a nonzero sum unchanged), so results do not depend on how
+        // runs are chunked.
+        let v = &v[..n];
+        for (xa, ka) in x[..n].iter_mut().zip(k.chunks_exact(n)) {
+            let mut acc = *xa;
+            for (kb, vb) in ka.iter().zip(v) {
+                acc += kb * vb;
+            }
+            *xa = acc;
+        }
+        return;
+    }
     for a in 0..n {
         let xa = &mut x[a * runs..(a + 1) * runs];
         for b in 0..n {

@@ -16,6 +16,10 @@ pub struct Entry {
     pub text: &'static str,
     /// Plot file stems of this figure (empty for SLAM studies, which draw their own).
     pub plots: &'static [&'static str],
+    /// Further scenario files (name, text) whose results the figure draws as well (e.g. the
+    /// dense graph of Li & Rajan Fig. 13 beside the sparse one); each is simulated as its own
+    /// study.
+    pub companions: &'static [(&'static str, &'static str)],
 }
 
 macro_rules! scenario {
@@ -35,11 +39,47 @@ const FIG62: (&str, &str) = scenario!("thesis-fig6.2.toml");
 const FIG63: (&str, &str) = scenario!("thesis-fig6.3.toml");
 const SLAM: (&str, &str) = scenario!("slam-fig3.toml");
 const SLAM_DIST: (&str, &str) = scenario!("slam-disturbed.toml");
+const GA8: (&str, &str) = scenario!("garkf-fig8.toml");
+const GA9: (&str, &str) = scenario!("garkf-fig9.toml");
+const GA10: (&str, &str) = scenario!("garkf-fig10.toml");
+const GA11: (&str, &str) = scenario!("garkf-fig11.toml");
+const GA12: (&str, &str) = scenario!("garkf-fig12.toml");
+const GA13: (&str, &str) = scenario!("garkf-fig13.toml");
+const GA13_DENSE: (&str, &str) = scenario!("garkf-fig13-dense.toml");
 
 macro_rules! entry {
     ($name:literal, $desc:literal, $sc:expr, [$($p:literal),*]) => {
-        Entry { name: $name, description: $desc, file: $sc.0, text: $sc.1, plots: &[$($p),*] }
+        entry!($name, $desc, $sc, [$($p),*], [])
     };
+    ($name:literal, $desc:literal, $sc:expr, [$($p:literal),*], [$($c:expr),*]) => {
+        Entry {
+            name: $name,
+            description: $desc,
+            file: $sc.0,
+            text: $sc.1,
+            plots: &[$($p),*],
+            companions: &[$($c),*],
+        }
+    };
+}
+
+macro_rules! framework {
+    ($f:literal) => {
+        ($f, include_str!(concat!("../../../scenarios/", $f)))
+    };
+}
+
+/// The framework files the shipped scenarios name (`framework.file`, relative to `scenarios/`),
+/// embedded like the scenarios.
+pub const FRAMEWORKS: &[(&str, &str)] = &[
+    framework!("frameworks/random50-sparse.json"),
+    framework!("frameworks/random50-dense.json"),
+];
+
+/// The embedded text of a shipped framework file.
+pub fn framework_text(path: &str) -> Option<&'static str> {
+    let path = path.trim_start_matches("./");
+    FRAMEWORKS.iter().find(|(p, _)| *p == path).map(|(_, t)| *t)
 }
 
 /// Every reproducible figure, in paper order.
@@ -147,6 +187,43 @@ pub const ENTRIES: &[Entry] = &[
         ["thesis-fig6.3"]
     ),
     entry!(
+        "garkf-fig8",
+        "Li & Rajan Fig. 8: tr Θ̂ from RAL and from consensus, λ = 1 and 0.2",
+        GA8,
+        ["garkf-fig8"]
+    ),
+    entry!(
+        "garkf-fig9",
+        "Li & Rajan Fig. 9: convergence indicator ψ against tracking error δ with Theorem 1's bound",
+        GA9,
+        ["garkf-fig9"]
+    ),
+    entry!(
+        "garkf-fig10",
+        "Li & Rajan Fig. 10: one edge's covariance, RKF vs GA-RKF (edge lost, λ = 1, λ = 0.2)",
+        GA10,
+        ["garkf-fig10"]
+    ),
+    entry!(
+        "garkf-fig11",
+        "Li & Rajan Fig. 11: tracking error at λ = 0.4 and time-averaged over λ",
+        GA11,
+        ["garkf-fig11-time", "garkf-fig11-sweep"]
+    ),
+    entry!(
+        "garkf-fig12",
+        "Li & Rajan Fig. 12: one agent departing at t0 = 0, 1.5, 3, 10 s",
+        GA12,
+        ["garkf-fig12"]
+    ),
+    entry!(
+        "garkf-fig13",
+        "Li & Rajan Fig. 13: 50 agents, sparse vs dense graph, share of stable runs as agents depart",
+        GA13,
+        ["garkf-fig13"],
+        [GA13_DENSE]
+    ),
+    entry!(
         "slam-fig3",
         "Guo et al. IFAC 2020 Fig. 3: distributed localization, mapping and formation (§6)",
         SLAM,
@@ -159,6 +236,21 @@ pub const ENTRIES: &[Entry] = &[
         []
     ),
 ];
+
+/// A shipped scenario text, checked, its `framework.file` taken from [`FRAMEWORKS`].
+fn scenario_of(file: &str, text: &str) -> Result<crate::scenario::Scenario, String> {
+    let spec: crate::scenario::ScenarioSpec =
+        toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
+    let fw = match &spec.framework.file {
+        Some(p) => Some(
+            framework_text(p)
+                .ok_or_else(|| format!("{file}: framework file `{p}` is not embedded"))
+                .and_then(crate::scenario::FrameworkSpec::from_framework_json)?,
+        ),
+        None => None,
+    };
+    crate::scenario::Scenario::from_spec(&spec, fw.as_ref()).map_err(|e| format!("{file}: {e}"))
+}
 
 /// Looks a name up.
 pub fn find(name: &str) -> Option<&'static Entry> {
@@ -186,9 +278,18 @@ impl Entry {
         if self.is_slam() {
             return Err(format!("{} is a SLAM study", self.name));
         }
-        let spec: crate::scenario::ScenarioSpec =
-            toml::from_str(self.text).map_err(|e| format!("{}: {e}", self.file))?;
-        crate::scenario::Scenario::from_spec(&spec, None).map_err(|e| format!("{}: {e}", self.file))
+        scenario_of(self.file, self.text)
+    }
+
+    /// The checked scenarios of its companions.
+    ///
+    /// # Errors
+    /// As [`Entry::scenario`].
+    pub fn companion_scenarios(&self) -> Result<Vec<crate::scenario::Scenario>, String> {
+        self.companions
+            .iter()
+            .map(|(f, t)| scenario_of(f, t))
+            .collect()
     }
 }
 
@@ -213,6 +314,7 @@ mod tests {
                 for p in e.plots {
                     assert!(sc.plots().iter().any(|q| q.file() == *p), "{}: {p}", e.name);
                 }
+                e.companion_scenarios().unwrap();
             }
         }
     }

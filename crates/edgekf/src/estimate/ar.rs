@@ -26,6 +26,11 @@ pub struct ArModel {
     pub noise_var: Vec<f64>,
 }
 
+/// The largest AR order a scenario may give: the check solves a (p + 1) × (p + 1) system per
+/// coordinate and the filters sum p lags per edge and step, so an order of thousands (a slip)
+/// would stall the check for a minute; an input model needs a handful of lags.
+pub const MAX_ORDER: usize = 100;
+
 impl ArModel {
     /// Order p.
     pub fn order(&self) -> usize {
@@ -39,6 +44,12 @@ impl ArModel {
     pub fn check(&self, dim: usize) -> Result<(), String> {
         if self.coeffs.is_empty() {
             return Err("`coeffs` needs at least one lag".into());
+        }
+        if self.order() > MAX_ORDER {
+            return Err(format!(
+                "`coeffs` has {} lags; an AR model here has at most {MAX_ORDER}",
+                self.order()
+            ));
         }
         for (l, a) in self.coeffs.iter().enumerate() {
             if a.len() != dim || a.iter().any(|v| !v.is_finite()) {

@@ -290,8 +290,13 @@ pub struct Jrkf {
     agent_edges: Vec<std::ops::Range<usize>>,
     coeffs: Vec<Vec<f64>>,
     extra: Option<DMatrix<f64>>,
-    /// Shared: `blocks[i]`; per run: `blocks[i * runs + r]`.
+    /// Shared: `blocks[group[i]]`; per run: `blocks[i * runs + r]`.
     blocks: Vec<Block>,
+    /// Shared: the group of each agent and one agent of each group.
+    group: Vec<usize>,
+    reps: Vec<usize>,
+    /// First state row and size of each agent's block.
+    agent_rows: Vec<(usize, usize)>,
     x: Vec<f64>,
     lost: Vec<bool>,
     seen: Vec<bool>,
@@ -308,8 +313,25 @@ impl Jrkf {
     pub fn new(m: &Model, samples: usize, runs: usize, p_fail: Option<f64>, shared: bool) -> Self {
         let d = m.dim;
         let (proto, max_n) = agent_blocks(m, samples);
+        // Shared: one recursion per group of agents with identical blocks (same Q_i, R_i, Σ_0;
+        // with white process noise the agents of equal degree form a group).
+        let agent_group = if shared {
+            super::rkf::groups(proto.iter().map(|b| {
+                std::iter::once(b.n as u64)
+                    .chain(
+                        b.q.iter()
+                            .chain(b.w.iter())
+                            .chain(b.sigma.iter())
+                            .map(|v| v.to_bits()),
+                    )
+                    .collect::<Vec<u64>>()
+            }))
+        } else {
+            ((0..proto.len()).collect(), (0..proto.len()).collect())
+        };
+        let agent_rows: Vec<(usize, usize)> = proto.iter().map(|b| (b.row, b.n)).collect();
         let blocks = if shared {
-            proto
+            agent_group.1.iter().map(|&i| proto[i].clone()).collect()
         } else {
             proto
                 .iter()
@@ -337,6 +359,9 @@ impl Jrkf {
             coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
             extra,
             blocks,
+            group: agent_group.0,
+            reps: agent_group.1,
+            agent_rows,
             x: vec![0.0; m.num_edges() * d * runs],
             lost: vec![false; max_n / d.max(1)],
             seen: vec![true; max_n / d.max(1)],
@@ -350,7 +375,7 @@ impl Jrkf {
     /// Posterior covariance `Σ^i_{k|k}` of agent `i`'s edges (in run `r` for the per-run path).
     pub fn covariance(&self, i: usize, r: usize) -> &DMatrix<f64> {
         if self.shared {
-            &self.blocks[i].sigma
+            &self.blocks[self.group[i]].sigma
         } else {
             &self.blocks[i * self.runs + r].sigma
         }
@@ -371,12 +396,12 @@ impl Jrkf {
         let r = self.runs;
         let d = self.dim;
         let mut failed = None;
-        for (i, b) in self.blocks.iter_mut().enumerate() {
+        for (g, b) in self.blocks.iter_mut().enumerate() {
             if all_lost || !b.frozen {
                 let ne = b.n / d.max(1);
                 self.lost[..ne].fill(all_lost);
                 if !b.covariance_step(&self.lost[..ne], &[], self.extra.as_ref()) {
-                    failed = Some(i);
+                    failed = Some(self.reps[g]);
                     break;
                 }
             }
@@ -386,8 +411,9 @@ impl Jrkf {
             return;
         }
         for (i, range) in self.agent_edges.iter().enumerate() {
-            let b = &self.blocks[i];
-            let span = b.row * r..(b.row + b.n) * r;
+            let b = &self.blocks[self.group[i]];
+            let (row, n) = self.agent_rows[i];
+            let span = row * r..(row + n) * r;
             if all_lost {
                 // Every input predicted by the AR model (per run).
                 for (a, e) in range.clone().enumerate() {
@@ -400,7 +426,7 @@ impl Jrkf {
                                 .enumerate()
                                 .map(|(l, co)| co[c] * self.hist[l + 1][(j * d + c) * r + run])
                                 .sum();
-                            self.x[(b.row + a * d + c) * r + run] +=
+                            self.x[(row + a * d + c) * r + run] +=
                                 self.dt * (self.hist[0][(i * d + c) * r + run] - uj);
                         }
                     }
@@ -411,11 +437,11 @@ impl Jrkf {
                 }
             }
             let x = &mut self.x[span.clone()];
-            let innov = &mut self.innov[..b.n * r];
+            let innov = &mut self.innov[..n * r];
             for ((v, yv), xv) in innov.iter_mut().zip(&s.y[span]).zip(x.iter()) {
                 *v = yv - xv;
             }
-            batch_gemv_acc(&b.gain, b.n, innov, x, r);
+            batch_gemv_acc(&b.gain, n, innov, x, r);
         }
     }
 
@@ -505,7 +531,13 @@ impl Estimator for Jrkf {
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
         if self.shared {
-            out.fill(self.blocks.iter().map(|b| b.sigma.trace()).sum());
+            // Summed over the agents in order (each agent's trace is its group's).
+            out.fill(
+                self.group
+                    .iter()
+                    .map(|&g| self.blocks[g].sigma.trace())
+                    .sum(),
+            );
             return;
         }
         let r = self.runs;

@@ -79,6 +79,7 @@ pub struct Mmse<const D: usize> {
     runs: usize,
     gains: Vec<f64>,
     traces: Vec<f64>,
+    posteriors: Vec<SMatrix<f64, D, D>>,
     x: Vec<f64>,
     innov: Vec<f64>,
 }
@@ -89,21 +90,33 @@ impl<const D: usize> Mmse<D> {
         let prior = SMatrix::<f64, D, D>::identity() * prior_var;
         let mut gains = Vec::with_capacity(m.num_edges() * D * D);
         let mut traces = Vec::with_capacity(m.num_edges());
+        let mut posteriors = Vec::with_capacity(m.num_edges());
         for w in &m.mean_cov(samples) {
             let w = to_static::<D>(w);
             // prior is positive definite and W ⪰ 0, so prior + W is invertible.
             let k = prior * (prior + w).try_inverse().unwrap_or_else(SMatrix::zeros);
             gains.extend(k.transpose().iter().copied());
             // Posterior covariance (I − K) Σ = (Σ⁻¹ + W⁻¹)⁻¹ without inverting a singular W.
-            traces.push(((SMatrix::<f64, D, D>::identity() - k) * prior).trace());
+            let post = (SMatrix::<f64, D, D>::identity() - k) * prior;
+            traces.push(post.trace());
+            posteriors.push(post);
         }
         Self {
             runs,
             gains,
             traces,
+            posteriors,
             x: vec![0.0; m.num_edges() * D * runs],
             innov: vec![0.0; D * runs],
         }
+    }
+}
+
+impl<const D: usize> Mmse<D> {
+    /// Posterior covariance of edge `e`, `(Σ⁻¹ + T R⁻¹)⁻¹` (the same at every step and in every
+    /// run).
+    pub fn covariance(&self, e: usize) -> SMatrix<f64, D, D> {
+        self.posteriors[e]
     }
 }
 

@@ -21,6 +21,8 @@
 //! | `jrkf-ar` | [`jrkf`] | EUSIPCO (14) with the predicted inputs of thesis (6.2)–(6.10) |
 //! | `crkf` | [`crkf`] | EUSIPCO (9a)–(9g) = thesis (5.6)–(5.12) |
 //! | `oracle` | [`oracle`] | the true edges (noiseless reference) |
+//! | `rkf-ca` | [`rkf_ca`] | Li & Rajan (5)–(7), (21): CA edge filter, intermittent observations |
+//! | `garkf` | [`garkf`] | Li & Rajan Algorithm 1 with (8)–(18), corrected |
 //!
 //! # T measurements per step
 //! With `H = 1_T ⊗ I_D` and `R̃ = I_T ⊗ R_ij`, `Hᵀ R̃⁻¹ H = T R_ij⁻¹` and `Hᵀ R̃⁻¹ y = T R_ij⁻¹ ȳ`
@@ -45,6 +47,7 @@ pub mod ar;
 pub mod batch;
 pub mod ca;
 pub mod crkf;
+pub mod garkf;
 pub mod jrkf;
 pub mod mle;
 pub mod mmse;
@@ -52,6 +55,7 @@ pub mod oracle;
 pub mod pcrb;
 pub mod ral;
 pub mod rkf;
+pub mod rkf_ca;
 pub mod rkf_commless;
 
 use std::fmt;
@@ -414,6 +418,8 @@ impl Registry {
                 Arc::new(jrkf::JrkfArKind),
                 Arc::new(crkf::Kind),
                 Arc::new(oracle::Kind),
+                Arc::new(rkf_ca::RkfCaKind),
+                Arc::new(garkf::GarkfKind),
             ],
         })
     }

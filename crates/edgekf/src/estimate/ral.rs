@@ -292,21 +292,34 @@ pub fn feasibility<const D: usize>(
     h: &[Vector<D>],
     opts: &RalOptions,
 ) -> Result<(), RalError> {
+    feasibility_from_gram(variant, &gram(h), h.len(), opts)
+}
+
+/// [`feasibility`] from the Gram matrix `A = H Hᵀ` and the number of observed neighbours
+/// (the checks read H only through them).
+///
+/// # Errors
+/// The [`RalError`] naming the failed condition.
+pub fn feasibility_from_gram<const D: usize>(
+    variant: RalVariant,
+    a: &Matrix<D>,
+    neighbours: usize,
+    opts: &RalOptions,
+) -> Result<(), RalError> {
     if matches!(variant, RalVariant::Rotation | RalVariant::Similarity) && !(2..=3).contains(&D) {
         return Err(RalError::Dimension { variant, dim: D });
     }
     let need = variant.min_neighbours(D);
-    if h.len() < need {
+    if neighbours < need {
         return Err(RalError::TooFewNeighbours {
             variant,
-            have: h.len(),
+            have: neighbours,
             need,
         });
     }
     match variant {
         RalVariant::Translation => Ok(()),
         RalVariant::Scaling => {
-            let a = gram(h);
             let amax = (0..D).map(|d| a[(d, d)]).fold(0.0, f64::max);
             for d in 0..D {
                 // Written so that NaN counts as not excited.
@@ -323,7 +336,7 @@ pub fn feasibility<const D: usize>(
             } else {
                 D - 1
             };
-            let rank = numerical_rank(&gram(h), opts.rank_tol);
+            let rank = numerical_rank(a, opts.rank_tol);
             if rank < need_rank {
                 return Err(RalError::RankDeficient {
                     variant,
@@ -416,7 +429,46 @@ pub fn estimate<const D: usize>(
             y: y.len(),
         });
     }
-    feasibility(variant, h, opts)?;
+    let sums = RalSums {
+        gram: gram(h),
+        cross: cross(y, h),
+        gram_y: if variant == RalVariant::Similarity
+            && opts.similarity_scale == SimilarityScale::SingularValueRatio
+        {
+            gram(y)
+        } else {
+            Matrix::<D>::zeros()
+        },
+        neighbours: h.len(),
+    };
+    estimate_from_sums(variant, &sums, opts)
+}
+
+/// The sums over agent i's observed neighbours that every RAL variant reads (so a caller can
+/// accumulate them in place, one neighbour at a time, without forming H or Y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RalSums<const D: usize> {
+    /// `A = H Hᵀ = Σ_j p_ij p_ijᵀ`.
+    pub gram: Matrix<D>,
+    /// `M = Y Hᵀ = Σ_j y_ij p_ijᵀ`.
+    pub cross: Matrix<D>,
+    /// `Y Yᵀ = Σ_j y_ij y_ijᵀ` (read only by [`SimilarityScale::SingularValueRatio`]; may be
+    /// zero otherwise).
+    pub gram_y: Matrix<D>,
+    /// `N_i`.
+    pub neighbours: usize,
+}
+
+/// [`estimate`] from the neighbourhood sums ([`RalSums`]).
+///
+/// # Errors
+/// The feasibility failure ([`feasibility_from_gram`]).
+pub fn estimate_from_sums<const D: usize>(
+    variant: RalVariant,
+    sums: &RalSums<D>,
+    opts: &RalOptions,
+) -> Result<RalEstimate<D>, RalError> {
+    feasibility_from_gram(variant, &sums.gram, sums.neighbours, opts)?;
     let id = Matrix::<D>::identity();
     let mut est = RalEstimate {
         variant,
@@ -424,44 +476,38 @@ pub fn estimate<const D: usize>(
         rotation: id,
         scale: 1.0,
         gram_inv: Matrix::<D>::zeros(),
-        neighbours: h.len(),
+        neighbours: sums.neighbours,
     };
+    let a = &sums.gram;
+    let m = &sums.cross;
     match variant {
         RalVariant::Translation => {}
         RalVariant::General => {
-            let a = gram(h);
-            let a_inv = a
-                .cholesky()
-                .map(|c| c.inverse())
-                .ok_or(RalError::RankDeficient {
-                    variant,
-                    rank: D - 1,
-                    need: D,
-                })?;
-            est.theta = cross(y, h) * a_inv;
+            let a_inv = inverse_spd_small(a).ok_or(RalError::RankDeficient {
+                variant,
+                rank: D - 1,
+                need: D,
+            })?;
+            est.theta = m * a_inv;
             est.gram_inv = a_inv;
         }
         RalVariant::Scaling => {
-            let a = gram(h);
-            let m = cross(y, h);
             est.theta =
                 Matrix::<D>::from_fn(|r, c| if r == c { m[(r, r)] / a[(r, r)] } else { 0.0 });
         }
         RalVariant::Rotation => {
-            let (r, _) = orthogonal_procrustes(&cross(y, h), true);
+            let (r, _) = orthogonal_procrustes(m, true);
             est.theta = r;
             est.rotation = r;
         }
         RalVariant::Similarity => {
-            let m = cross(y, h);
-            let (r, signed_sum) = orthogonal_procrustes(&m, true);
-            let a = gram(h);
+            let (r, signed_sum) = orthogonal_procrustes(m, true);
             let s = match opts.similarity_scale {
                 SimilarityScale::LeastSquares => signed_sum / a.trace(),
                 SimilarityScale::SingularValueRatio => {
-                    let rank = numerical_rank(&a, opts.rank_tol);
-                    let eh = sym_eigenvalues_desc(&a);
-                    let ey = sym_eigenvalues_desc(&gram(y));
+                    let rank = numerical_rank(a, opts.rank_tol);
+                    let eh = sym_eigenvalues_desc(a);
+                    let ey = sym_eigenvalues_desc(&sums.gram_y);
                     (0..rank)
                         .map(|i| ey[i].max(0.0).sqrt() / eh[i].sqrt())
                         .sum::<f64>()
@@ -474,6 +520,28 @@ pub fn estimate<const D: usize>(
         }
     }
     Ok(est)
+}
+
+/// Inverse of a symmetric positive definite D × D matrix: closed form for D ≤ 2 (the general
+/// RAL of every agent at every step and run), Cholesky otherwise; `None` when not positive
+/// definite.
+fn inverse_spd_small<const D: usize>(a: &Matrix<D>) -> Option<Matrix<D>> {
+    match D {
+        1 => (a[(0, 0)] > 0.0).then(|| Matrix::<D>::from_element(1.0 / a[(0, 0)])),
+        2 => {
+            let det = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)];
+            if !(a[(0, 0)] > 0.0 && det > 0.0) {
+                return None;
+            }
+            let r = 1.0 / det;
+            Some(Matrix::<D>::from_fn(|i, j| match (i, j) {
+                (0, 0) => a[(1, 1)] * r,
+                (1, 1) => a[(0, 0)] * r,
+                _ => -a[(0, 1)] * r,
+            }))
+        }
+        _ => a.cholesky().map(|c| c.inverse()),
+    }
 }
 
 /// Skew-symmetric generators of the rotations in D = 2 (one) or 3 (three).
@@ -514,6 +582,21 @@ impl<const D: usize> RalEstimate<D> {
         p_ij: &Vector<D>,
         r: &Matrix<D>,
     ) -> Result<Matrix<D>, RalError> {
+        self.covariance_from_gram(&gram(h), p_ij, r)
+    }
+
+    /// [`Self::covariance`] from the Gram matrix `A = H Hᵀ` of the neighbours the estimate was
+    /// computed from: with `J_j = [T_k h_j]_k`, `𝒩_ab = Σ_j h_jᵀ T_aᵀ T_b h_j = tr(T_aᵀ T_b A)`
+    /// and `𝓜_ab = tr(T_aᵀ R T_b A)`, so H enters only through A.
+    ///
+    /// # Errors
+    /// [`RalError::SingularCovariance`] when the linearised normal matrix is singular.
+    pub fn covariance_from_gram(
+        &self,
+        a: &Matrix<D>,
+        p_ij: &Vector<D>,
+        r: &Matrix<D>,
+    ) -> Result<Matrix<D>, RalError> {
         let mut t = [Matrix::<D>::zeros(); 4];
         let m = match self.variant {
             RalVariant::General => return Ok(ral_covariance(&self.gram_inv, p_ij, r)),
@@ -537,26 +620,13 @@ impl<const D: usize> RalEstimate<D> {
                 }
             }
         };
-        // 𝒩 = Σ_j J_jᵀ J_j, 𝓜 = Σ_j J_jᵀ R J_j with J_j = [T_k h_j]_k (padded to 4 × 4).
+        // 𝒩 and 𝓜 (padded to 4 × 4 with the identity / zeros).
         let mut nn = SMatrix::<f64, 4, 4>::identity();
         let mut mm = SMatrix::<f64, 4, 4>::zeros();
-        for a in 0..m {
-            for b in 0..m {
-                nn[(a, b)] = 0.0;
-            }
-        }
-        for hj in h {
-            let mut jj = SMatrix::<f64, D, 4>::zeros();
-            for k in 0..m {
-                jj.set_column(k, &(t[k] * hj));
-            }
-            let jtj = jj.transpose() * jj;
-            let jrj = jj.transpose() * r * jj;
-            for a in 0..m {
-                for b in 0..m {
-                    nn[(a, b)] += jtj[(a, b)];
-                    mm[(a, b)] += jrj[(a, b)];
-                }
+        for x in 0..m {
+            for y in 0..m {
+                nn[(x, y)] = (t[x].transpose() * t[y] * a).trace();
+                mm[(x, y)] = (t[x].transpose() * r * t[y] * a).trace();
             }
         }
         let n_inv = nn

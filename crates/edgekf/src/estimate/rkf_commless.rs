@@ -188,6 +188,14 @@ impl<const D: usize> RkfCommless<D> {
         }
     }
 
+    /// Posterior covariance of edge `e` in run `r`.
+    pub fn covariance(&self, e: usize, r: usize) -> Mat<D> {
+        match &self.covs {
+            Covs::Shared { covs, .. } => covs[e].sigma,
+            Covs::PerRun { bank, .. } => bank.sigma(e, r),
+        }
+    }
+
     /// The inflation `Δt² Σ_u` and the Wiener weight `W` for the previous two posteriors.
     fn predictor(&self, q: &Mat<D>, s1: &Mat<D>, s2: &Mat<D>) -> (Option<Mat<D>>, Mat<D>) {
         let dt = self.dt;

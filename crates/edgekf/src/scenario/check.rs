@@ -41,6 +41,8 @@ impl Keys {
                 "sim.samples_per_step" => "samples_per_step",
                 "sim.every" => "every",
                 "sim.paths_run" => "paths_run",
+                "sim.reports_per_decade" => "reports_per_decade",
+                "sim.paths_per_decade" => "paths_per_decade",
                 "framework.leaders" => "leaders",
                 "noise.sigma_w" => "process_cov",
                 other => other,
@@ -96,11 +98,96 @@ pub(crate) fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Number of reported steps: 1, every multiple of `every` above 1, and the last step.
-pub(crate) fn report_count(steps: usize, every: usize) -> usize {
+/// The most log-spaced points per decade a schedule may ask for.
+pub(crate) const MAX_PER_DECADE: usize = 1000;
+
+/// The log-spaced steps `round(10^(j/n))`, j = 0, 1, …, deduplicated, below `every` (the
+/// first reporting interval, where the regular grid has no point) and up to `steps` (a bounded
+/// loop: at most n·log10(every) + 1 values).
+pub(crate) fn log_steps(steps: usize, every: usize, n: usize) -> Vec<usize> {
+    let mut v: Vec<usize> = Vec::new();
+    if n == 0 {
+        return v;
+    }
+    for j in 0.. {
+        let s = 10f64.powf(j as f64 / n as f64).round();
+        if s >= every as f64 || s > steps as f64 {
+            break;
+        }
+        let s = s as usize;
+        if v.last() != Some(&s) {
+            v.push(s);
+        }
+    }
+    v
+}
+
+/// Whether `s` is on the regular grid: 1, a multiple of `every`, or the last step.
+fn on_grid(s: usize, steps: usize, every: usize) -> bool {
+    s == 1 || s == steps || s.is_multiple_of(every)
+}
+
+/// Number of reported steps: 1, every multiple of `every` above 1, the last step, and the
+/// log-spaced steps of [`log_steps`] not among them.
+pub(crate) fn report_count(steps: usize, every: usize, per_decade: usize) -> usize {
     let multiples = steps / every - usize::from(every == 1);
     let last = usize::from(!steps.is_multiple_of(every) && steps > 1);
-    1 + multiples + last
+    let extra = log_steps(steps, every, per_decade)
+        .into_iter()
+        .filter(|&s| !on_grid(s, steps, every))
+        .count();
+    1 + multiples + last + extra
+}
+
+/// The reported steps, ascending (see `Scenario::report_steps`).
+pub(crate) fn report_steps(steps: usize, every: usize, per_decade: usize) -> Vec<usize> {
+    let extra: Vec<usize> = log_steps(steps, every, per_decade)
+        .into_iter()
+        .filter(|&s| !on_grid(s, steps, every))
+        .collect();
+    let mut v = Vec::with_capacity(report_count(steps, every, per_decade));
+    v.push(1);
+    let mut e = extra.iter().copied().peekable();
+    for k in (1..=steps / every).map(|m| m * every).filter(|&k| k > 1) {
+        while let Some(s) = e.next_if(|&s| s < k) {
+            v.push(s);
+        }
+        v.push(k);
+    }
+    v.extend(e);
+    if v.last().copied() != Some(steps) {
+        v.push(steps);
+    }
+    v
+}
+
+/// Indices of a log-spaced subset of ascending `steps`: the first, the last, and each step at
+/// least a factor `10^(1/n)` beyond the previous one kept; all of them for `n = 0`.
+pub(crate) fn thin_log(steps: &[usize], n: usize) -> Vec<usize> {
+    if n == 0 || steps.len() <= 2 {
+        return (0..steps.len()).collect();
+    }
+    let ratio = 10f64.powf(1.0 / n as f64);
+    let mut keep = vec![0];
+    let mut last = steps[0] as f64;
+    for (i, &s) in steps.iter().enumerate().skip(1) {
+        if i + 1 == steps.len() || s as f64 >= last * ratio * (1.0 - 1e-12) {
+            keep.push(i);
+            last = s as f64;
+        }
+    }
+    keep
+}
+
+/// A points-per-decade key: at most [`MAX_PER_DECADE`].
+pub(crate) fn per_decade(k: Keys, key: &'static str, n: usize) -> Result<(), ScenarioError> {
+    if n > MAX_PER_DECADE {
+        return Err(err(
+            k.key(key),
+            format!("must be at most {MAX_PER_DECADE} points per decade, got {n}"),
+        ));
+    }
+    Ok(())
 }
 
 /// The largest number of reported values (steps × runs) a study may keep: 2³³ doubles = 64 GiB.
@@ -150,13 +237,13 @@ pub(crate) fn sim(
             ),
         ));
     }
-    let values = report_count(steps, every) as f64 * runs as f64;
+    let values = report_count(steps, every, 0) as f64 * runs as f64;
     if values > MAX_VALUES {
         return Err(err(
             k.key("sim.steps"),
             format!(
                 "{} reported steps × {runs} runs = {values:.3e} values per metric is more than any machine holds; report less often (raise `every`) or run fewer steps",
-                report_count(steps, every)
+                report_count(steps, every, 0)
             ),
         ));
     }
@@ -204,6 +291,31 @@ pub(crate) fn representable(
     check("process_cov", q, steps as f64)?;
     for m in r {
         check("meas_cov", m, 1.0)?;
+    }
+    Ok(())
+}
+
+/// The AR input model's variance in f64: every lost input inflates a covariance by
+/// `Δt² Σ_u` with `Σ_u ⪯ r(0)` (the inputs' variance, at least `σ²_n`), so over the horizon by up
+/// to `steps · Δt² · r(0)`, which must stay below the limit of [`representable`]. The model must
+/// have passed [`ArModel::check`](crate::estimate::ArModel::check).
+pub(crate) fn ar_representable(
+    k: Keys,
+    ar: &crate::estimate::ArModel,
+    steps: usize,
+    dt: f64,
+) -> Result<(), ScenarioError> {
+    for (d, &s2) in ar.noise_var.iter().enumerate() {
+        let r0 = ar.autocovariance_1d(d, 0).map_or(s2, |r| r[0].max(s2));
+        let v = r0 * dt * dt * steps as f64;
+        if v.is_nan() || v > 1e150 {
+            return Err(err(
+                k.key("comm.ar"),
+                format!(
+                    "the inputs' variance r(0) = {r0:.3e} of coordinate {d} (noise_var = {s2:.3e}) is too large to simulate in f64: lost inputs add up to {steps} × Δt² × r(0) = {v:.3e} to a covariance (limit 1e150); rescale the units"
+                ),
+            ));
+        }
     }
     Ok(())
 }
@@ -542,4 +654,63 @@ pub(crate) fn estimators(
         });
     }
     Ok(defs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn report_schedule_is_ascending_counted_and_dense_only_where_the_grid_is_coarse() {
+        for (steps, every, n) in [
+            (30_000, 30, 20),
+            (30_000, 30, 0),
+            (30_000, 5, 20),
+            (1000, 100, 5),
+            (7, 3, 50),
+            (1, 1, 20),
+            (10, 1, 1000),
+            (50_000, 50_000, 10),
+        ] {
+            let v = report_steps(steps, every, n);
+            assert_eq!(
+                v.len(),
+                report_count(steps, every, n),
+                "{steps} {every} {n}"
+            );
+            assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");
+            assert_eq!(v[0], 1);
+            assert_eq!(*v.last().unwrap(), steps);
+            let regular = report_steps(steps, every, 0);
+            assert!(regular.iter().all(|s| v.contains(s)));
+            // Extra steps only in the first interval, so no window after it changes.
+            assert!(v
+                .iter()
+                .filter(|s| !regular.contains(s))
+                .all(|&s| s < every));
+        }
+        // The shipped setting: 18 steps between 1 and 30 (≈ 20 per decade), nothing later.
+        let v = report_steps(30_000, 30, 20);
+        assert_eq!(
+            v[..21],
+            [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 22, 25, 28, 30, 60]
+        );
+    }
+
+    #[test]
+    fn thinning_keeps_ends_and_a_log_spacing() {
+        let steps = report_steps(30_000, 30, 20);
+        let keep = thin_log(&steps, 20);
+        assert_eq!(keep[0], 0);
+        assert_eq!(*keep.last().unwrap(), steps.len() - 1);
+        let kept: Vec<usize> = keep.iter().map(|&i| steps[i]).collect();
+        let ratio = 10f64.powf(0.05);
+        for w in kept[..kept.len() - 1].windows(2) {
+            assert!(w[1] as f64 >= w[0] as f64 * ratio * (1.0 - 1e-12), "{w:?}");
+        }
+        // About 20 per decade over 4.5 decades, instead of one per report.
+        assert!((60..=100).contains(&kept.len()), "{}", kept.len());
+        eprintln!("{} of {} kept: {kept:?}", kept.len(), steps.len());
+        assert_eq!(thin_log(&steps, 0).len(), steps.len());
+    }
 }

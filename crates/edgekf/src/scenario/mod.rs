@@ -7,19 +7,23 @@
 //! engine relies on its invariants without re-validating.
 
 mod check;
+mod framework_file;
 mod resolved;
 mod spec;
+mod sweep;
 
 use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
+pub use framework_file::FRAMEWORK_SCHEMA;
 pub use resolved::{Resolved, SCHEMA};
 pub use spec::{
     CommSpec, ControlSpec, DepartureSpec, EstimatorEntry, FaultSpec, FeedbackSpec, FrameworkSpec,
     InitSpec, KeyframesSpec, LawSpec, LeaderSpec, ManeuverSpec, MetricsSpec, NoiseSpec, PlotSpec,
-    RandomDepartureSpec, ScenarioSpec, SimSpec,
+    RandomDepartureSpec, ScenarioSpec, SimSpec, StableSpec, SweepSpec,
 };
+pub use sweep::SweepPoint;
 
 use crate::control::maneuver::{fig7b_keyframes, Hold, Maneuver, Trajectory};
 use crate::control::{FollowerLaw, LeaderMode};
@@ -130,7 +134,9 @@ pub struct Scenario {
     seed: u64,
     samples: usize,
     every: usize,
+    reports_per_decade: usize,
     paths_run: usize,
+    paths_per_decade: usize,
     allow_divergence: bool,
     estimators: Vec<EstimatorDef>,
     control: ControlSpec,
@@ -143,7 +149,10 @@ pub struct Scenario {
     maneuver: Option<(ManeuverSpec, Arc<dyn Trajectory>)>,
     metrics: MetricsSpec,
     metric_edge: Option<usize>,
+    sweep: Option<SweepSpec>,
     plots: Vec<PlotSpec>,
+    /// `λ_max(L_ff)`, for the step bound.
+    lmax_ff: f64,
 }
 
 /// Everything parsed from either input, before the checks shared by both.
@@ -158,7 +167,9 @@ struct Draft<'a> {
     seed: u64,
     samples: usize,
     every: usize,
+    reports_per_decade: usize,
     paths_run: usize,
+    paths_per_decade: usize,
     allow_divergence: bool,
     init_mean: Vec<f64>,
     init_cov: DMatrix<f64>,
@@ -169,6 +180,7 @@ struct Draft<'a> {
     faults: FaultSpec,
     maneuver: Option<ManeuverSpec>,
     metrics: MetricsSpec,
+    sweep: Option<SweepSpec>,
     estimators: Vec<serde_json::Map<String, serde_json::Value>>,
     /// The key of the estimator list in this input.
     estimators_key: &'static str,
@@ -263,7 +275,9 @@ impl Scenario {
             seed: s.seed,
             samples: s.samples_per_step,
             every: s.every,
+            reports_per_decade: s.reports_per_decade,
             paths_run: s.paths_run,
+            paths_per_decade: s.paths_per_decade,
             allow_divergence: s.allow_divergence,
             init_mean,
             init_cov,
@@ -274,6 +288,7 @@ impl Scenario {
             faults: spec.faults.clone(),
             maneuver: spec.maneuver.clone(),
             metrics: spec.metrics.clone(),
+            sweep: spec.sweep.clone(),
             estimators: spec.estimators.iter().map(|e| e.0.clone()).collect(),
             estimators_key: "estimators",
             plots: spec.plots.clone(),
@@ -364,7 +379,9 @@ impl Scenario {
             seed: r.seed,
             samples: r.samples_per_step,
             every: r.every.unwrap_or(10),
+            reports_per_decade: r.reports_per_decade.unwrap_or(0),
             paths_run: r.paths_run.unwrap_or(0),
+            paths_per_decade: r.paths_per_decade.unwrap_or(0),
             allow_divergence: r.allow_divergence.unwrap_or(false),
             init_mean: r.init_mean.clone(),
             init_cov,
@@ -375,6 +392,7 @@ impl Scenario {
             faults: r.faults.clone().unwrap_or_default(),
             maneuver: r.maneuver.clone(),
             metrics: r.metrics.clone().unwrap_or_default(),
+            sweep: r.sweep.clone(),
             estimators_key: if r.estimator_specs.is_some() {
                 "estimator_specs"
             } else {
@@ -393,6 +411,8 @@ impl Scenario {
         let dim = fw.dim();
         let n = fw.agents();
         check::sim(k, d.dt, d.steps, d.runs, d.samples, d.every, d.paths_run)?;
+        check::per_decade(k, "sim.reports_per_decade", d.reports_per_decade)?;
+        check::per_decade(k, "sim.paths_per_decade", d.paths_per_decade)?;
         check_cov(k.key("init_cov"), &d.init_cov)?;
         check_cov(k.key("process_cov"), &d.q)?;
         check::representable(k, &d.init_mean, &d.init_cov, &d.q, &d.r, d.steps, d.dt)?;
@@ -405,6 +425,7 @@ impl Scenario {
         }
         if let Some(ar) = &d.comm.ar {
             ar.check(dim).map_err(|m| err(k.key("comm.ar"), m))?;
+            check::ar_representable(k, ar, d.steps, d.dt)?;
         }
         // Control.
         let c = &d.control;
@@ -551,6 +572,18 @@ impl Scenario {
             &model,
             d.registry,
         )?;
+        // λ_max(L_ff) exactly, unless the cheap bound already shows the loop stable (large N).
+        let bound = lmax_followers_bound(&model.framework);
+        let gain = match law {
+            FollowerLaw::Static { gain } => gain,
+            FollowerLaw::Pi { alpha, .. } => alpha,
+            FollowerLaw::VaryingVelocity => 0.0,
+        };
+        let lmax_ff = if model.agents > 200 && d.dt * gain * bound < 1.0 {
+            bound
+        } else {
+            lmax_followers(&model.framework)
+        };
         let sc = Self {
             name: d.name,
             description: d.description,
@@ -561,7 +594,9 @@ impl Scenario {
             seed: d.seed,
             samples: d.samples,
             every: d.every,
+            reports_per_decade: d.reports_per_decade,
             paths_run: d.paths_run,
+            paths_per_decade: d.paths_per_decade,
             allow_divergence: d.allow_divergence,
             estimators,
             control,
@@ -574,10 +609,13 @@ impl Scenario {
             maneuver,
             metrics: d.metrics,
             metric_edge,
+            sweep: d.sweep,
             plots: d.plots,
+            lmax_ff,
         };
         sc.check_plots(k)?;
         sc.check_stability(k)?;
+        sweep::check(&sc, d.registry)?;
         Ok(sc)
     }
 
@@ -607,7 +645,9 @@ impl Scenario {
             estimator_specs: Some(self.estimators.iter().map(EstimatorDef::entry).collect()),
             description: self.description.clone(),
             every: Some(self.every),
+            reports_per_decade: (self.reports_per_decade > 0).then_some(self.reports_per_decade),
             paths_run: Some(self.paths_run),
+            paths_per_decade: (self.paths_per_decade > 0).then_some(self.paths_per_decade),
             follower_gain: Some(self.control.follower_gain),
             leader_gain: Some(self.control.leader_gain),
             control: Some(self.control.clone()),
@@ -616,6 +656,7 @@ impl Scenario {
             maneuver: self.maneuver.as_ref().map(|(m, _)| m.clone()),
             metrics: self.metrics.edge.is_some().then(|| self.metrics.clone()),
             allow_divergence: self.allow_divergence.then_some(true),
+            sweep: self.sweep.clone(),
             plots: self.plots.clone(),
         }
     }
@@ -710,7 +751,11 @@ impl Scenario {
             &self.model.r,
             self.steps,
             self.model.dt,
-        )
+        )?;
+        match &self.model.ar {
+            Some(ar) => check::ar_representable(k, ar, self.steps, self.model.dt),
+            None => Ok(()),
+        }
     }
 
     /// Name.
@@ -797,48 +842,95 @@ impl Scenario {
     pub fn plots(&self) -> &[PlotSpec] {
         &self.plots
     }
-
-    /// Number of reported steps: 1, every multiple of `every`, and the last step.
-    pub fn report_count(&self) -> usize {
-        check::report_count(self.steps, self.every)
+    /// The parameter sweep, if any ([`crate::sim::sweep`]).
+    pub fn sweep(&self) -> Option<&SweepSpec> {
+        self.sweep.as_ref()
     }
 
-    /// The reported steps: 1, every multiple of `every`, and the last step.
+    /// Number of reported steps (see [`Scenario::report_steps`]).
+    pub fn report_count(&self) -> usize {
+        check::report_count(self.steps, self.every, self.reports_per_decade)
+    }
+
+    /// The reported steps, ascending: 1, every multiple of `every`, the last step, and — with
+    /// `reports_per_decade = n > 0` — the log-spaced steps `round(10^(j/n))` (j = 0, 1, …) below
+    /// `every`. Those extra steps fill the first reporting interval, where a filter's transient
+    /// often lies entirely (the RKF's ε reaches its floor within 30 steps), so a log-time axis
+    /// shows it, while every average over a window after the first interval is unchanged.
+    ///
+    /// ```
+    /// use edgekf::scenario::{Scenario, ScenarioSpec};
+    ///
+    /// let mut spec = ScenarioSpec::minimal("demo", &["rkf"]);
+    /// spec.sim.steps = 1000;
+    /// spec.sim.every = 100;
+    /// let sc = Scenario::from_spec(&spec, None).unwrap();
+    /// assert_eq!(sc.report_steps()[..3], [1, 100, 200]);
+    /// spec.sim.reports_per_decade = 5;
+    /// let sc = Scenario::from_spec(&spec, None).unwrap();
+    /// assert_eq!(sc.report_steps()[..10], [1, 2, 3, 4, 6, 10, 16, 25, 40, 63]);
+    /// assert_eq!(sc.report_steps().len(), sc.report_count());
+    /// ```
     pub fn report_steps(&self) -> Vec<usize> {
-        let mut v = Vec::with_capacity(self.report_count());
-        v.push(1);
-        v.extend(
-            (1..=self.steps / self.every)
-                .map(|m| m * self.every)
-                .filter(|&k| k > 1),
-        );
-        if v.last().copied() != Some(self.steps) {
-            v.push(self.steps);
-        }
-        v
+        check::report_steps(self.steps, self.every, self.reports_per_decade)
+    }
+
+    /// The indices (into [`Scenario::report_steps`]) of the reports kept for agent paths
+    /// (`paths.csv` and path figures): all of them by default; with `paths_per_decade = n > 0`
+    /// a log-spaced subset — the first and last report, and each report at least a factor
+    /// `10^(1/n)` later than the previous one kept — so paths keep their transient and a 30 s
+    /// run needs about `4.5 n` points instead of one per report.
+    pub fn path_reports(&self) -> Vec<usize> {
+        check::thin_log(&self.report_steps(), self.paths_per_decade)
     }
 
     /// `Δt · c · λ_max(L_ff)` of the static follower law (or its counterpart for the other laws):
-    /// the discrete closed loop is stable below 2.
+    /// the discrete closed loop is stable below 2. For more than 200 agents whose loop is clearly
+    /// stable this uses Gershgorin's upper bound of `λ_max` (then the value is below 1).
     pub fn step_bound(&self) -> f64 {
-        let fw = &self.model.framework;
-        let followers: Vec<usize> = (0..fw.agents())
-            .filter(|i| !fw.leaders().contains(i))
-            .collect();
-        let l = fw.laplacian();
-        let lff = DMatrix::from_fn(followers.len(), followers.len(), |a, b| {
-            l[(followers[a], followers[b])]
-        });
-        let lmax = lff.symmetric_eigenvalues().max();
-        let gain = match self.law {
+        self.model.dt * self.gain() * self.lmax_ff
+    }
+
+    /// The followers' gain of the static law (α of the PI law; 0 for the varying-velocity law).
+    fn gain(&self) -> f64 {
+        match self.law {
             FollowerLaw::Static { gain } => gain,
             FollowerLaw::Pi { alpha, .. } => alpha,
             FollowerLaw::VaryingVelocity => 0.0,
-        };
-        self.model.dt * gain * lmax
+        }
     }
+}
 
+/// `λ_max(L_ff)`: the largest eigenvalue of the followers' block of the stress (computed once).
+fn lmax_followers(fw: &Framework) -> f64 {
+    let followers: Vec<usize> = (0..fw.agents())
+        .filter(|i| !fw.leaders().contains(i))
+        .collect();
+    let l = fw.laplacian();
+    let lff = DMatrix::from_fn(followers.len(), followers.len(), |a, b| {
+        l[(followers[a], followers[b])]
+    });
+    lff.symmetric_eigenvalues().max()
+}
+
+/// An upper bound of `λ_max(L_ff)` (Gershgorin: the largest absolute row sum), cheap for any N.
+fn lmax_followers_bound(fw: &Framework) -> f64 {
+    let l = fw.laplacian();
+    let leaders = fw.leaders();
+    (0..fw.agents())
+        .filter(|i| !leaders.contains(i))
+        .map(|i| {
+            (0..fw.agents())
+                .filter(|j| !leaders.contains(j))
+                .map(|j| l[(i, j)].abs())
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max)
+}
+
+impl Scenario {
     fn check_stability(&self, k: Keys) -> Result<(), ScenarioError> {
+        self.check_law_stability(k)?;
         let b = self.step_bound();
         if b >= 2.0 && !self.allow_divergence {
             return Err(err(
@@ -851,6 +943,50 @@ impl Scenario {
                     2.0 * self.model.dt / b
                 ),
             ));
+        }
+        Ok(())
+    }
+
+    /// The discrete closed loop of the PI and varying-velocity laws (Li & Rajan Table 1; see
+    /// [`crate::control::laws`]): refused when its spectral radius is ≥ 1, unless
+    /// `allow_divergence`.
+    fn check_law_stability(&self, k: Keys) -> Result<(), ScenarioError> {
+        use crate::control::laws;
+        let fw = &self.model.framework;
+        if self.allow_divergence || fw.leaders().is_empty() {
+            return Ok(());
+        }
+        let dt = self.model.dt;
+        let key = k.key("control.law");
+        let part =
+            laws::partition(fw.laplacian(), fw.leaders()).map_err(|e| err(key, e.to_string()))?;
+        match self.law {
+            FollowerLaw::VaryingVelocity => {
+                let rep = laws::varying_velocity_stability(&part, dt)
+                    .map_err(|e| err(key, e.to_string()))?;
+                if !rep.stable {
+                    return Err(err(
+                        key,
+                        format!(
+                            "the varying-velocity law (Zhao 2018) in discrete time, with the neighbours' velocities from their previous inputs, has spectral radius {:.4} ≥ 1 at Δt = {dt} on this stress (its Jacobi radius ρ(Γ⁻¹W_ff) = {:.4} must be < 1); use `static` or `pi`, or set `allow_divergence = true` to show the divergence",
+                            rep.spectral_radius, rep.jacobi_radius
+                        ),
+                    ));
+                }
+            }
+            FollowerLaw::Pi { alpha, eta } => {
+                let rho = laws::pi_spectral_radius(&part.l_ff, alpha, eta, dt)
+                    .map_err(|e| err(key, e.to_string()))?;
+                if rho >= 1.0 {
+                    return Err(err(
+                        key,
+                        format!(
+                            "the PI law's discrete closed loop has spectral radius {rho:.4} ≥ 1 (α = {alpha}, η = {eta}, Δt = {dt}); lower α, η or Δt, or set `allow_divergence = true`"
+                        ),
+                    ));
+                }
+            }
+            FollowerLaw::Static { .. } => {}
         }
         Ok(())
     }
@@ -868,13 +1004,22 @@ impl Scenario {
                 ));
             }
             match p {
-                PlotSpec::Metric { metric, .. } => {
+                PlotSpec::Metric { metric, inset, .. } => {
                     let known = self.metric_names();
                     if !known.iter().any(|m| m == metric) {
                         return Err(err(
                             &format!("{key}.metric"),
                             format!("unknown metric `{metric}`; this scenario reports {known:?}"),
                         ));
+                    }
+                    if let Some([a, b]) = inset {
+                        let end = self.steps as f64 * self.model.dt;
+                        if !(a.is_finite() && b.is_finite() && *a >= 0.0 && a < b && *b <= end) {
+                            return Err(err(
+                                &format!("{key}.inset"),
+                                format!("must be [from, to] with 0 ≤ from < to ≤ {end} s, got [{a}, {b}]"),
+                            ));
+                        }
                     }
                 }
                 PlotSpec::Inputs { agent, .. } => {
@@ -887,12 +1032,31 @@ impl Scenario {
                     }
                 }
                 PlotSpec::Paths { .. } => {}
+                PlotSpec::Panels { .. } | PlotSpec::Summary { .. } | PlotSpec::Indicator { .. } => {
+                    sweep::check_plot(self, p, &key)?;
+                }
             }
             if let Some(es) = p.estimators() {
-                for e in es {
+                for (x, e) in es.iter().enumerate() {
+                    if es[..x].contains(e) {
+                        return Err(err(
+                            &format!("{key}.estimators"),
+                            format!("`{e}` is listed twice"),
+                        ));
+                    }
                     if !self.estimators.iter().any(|d| &d.label == e) {
                         return Err(err(
                             &format!("{key}.estimators"),
+                            format!("`{e}` is not an estimator label of this scenario"),
+                        ));
+                    }
+                }
+            }
+            if let Some(l) = p.legend() {
+                for e in l.keys() {
+                    if !self.estimators.iter().any(|d| &d.label == e) {
+                        return Err(err(
+                            &format!("{key}.legend"),
                             format!("`{e}` is not an estimator label of this scenario"),
                         ));
                     }
@@ -904,14 +1068,19 @@ impl Scenario {
 
     /// The metrics reported for estimator `def`, in output order: `est_error`, `est_error_sq`,
     /// `cov_trace`, `procrustes`, then `tracking_error` with a target, then the estimator's own
-    /// quantities (`edge_cov_trace` only when `[metrics] edge` is set).
+    /// quantities (`edge_cov_trace` and `pcrb_trace` only when `[metrics] edge` is set,
+    /// GA-RKF's `theta_*` only with a `[maneuver]`).
     pub fn metrics_of(&self, def: &EstimatorDef) -> Vec<&'static str> {
         let mut out = vec!["est_error", "est_error_sq", "cov_trace", "procrustes"];
         if self.maneuver.is_some() {
             out.push("tracking_error");
         }
         for &q in def.config().metrics() {
-            if q == "edge_cov_trace" && self.metric_edge.is_none() {
+            let needs_edge = matches!(q, "edge_cov_trace" | "pcrb_trace");
+            let needs_target = q.starts_with("theta_");
+            if (needs_edge && self.metric_edge.is_none())
+                || (needs_target && self.maneuver.is_none())
+            {
                 continue;
             }
             if !out.contains(&q) {

@@ -1,9 +1,11 @@
-//! The fully resolved scenario (schema `edgekf.scenario/1`, the output contract of DESIGN.md):
+//! The fully resolved scenario (schema `edgekf.scenario/1`, the output contract of docs/formats.md):
 //! from it alone anyone can recompute the results. Unknown keys are refused, naming them.
 
 use serde::{Deserialize, Serialize};
 
-use super::spec::{CommSpec, ControlSpec, FaultSpec, ManeuverSpec, MetricsSpec, PlotSpec};
+use super::spec::{
+    CommSpec, ControlSpec, FaultSpec, ManeuverSpec, MetricsSpec, PlotSpec, SweepSpec,
+};
 
 /// Schema tag of [`Resolved`].
 pub const SCHEMA: &str = "edgekf.scenario/1";
@@ -59,9 +61,15 @@ pub struct Resolved {
     /// Report every this many steps (default 10).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub every: Option<usize>,
+    /// Log-spaced extra reports per decade (default 0: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reports_per_decade: Option<usize>,
     /// Recorded run (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub paths_run: Option<usize>,
+    /// Log-spaced subset of the reports kept for paths, per decade (default 0: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paths_per_decade: Option<usize>,
     /// Follower gain (default 1; also in `control`, which wins when both are given).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub follower_gain: Option<f64>,
@@ -83,6 +91,9 @@ pub struct Resolved {
     /// Metric options (default: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub metrics: Option<MetricsSpec>,
+    /// A parameter sweep (default: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepSpec>,
     /// Run past the stability bound and succeed despite divergence (default false).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub allow_divergence: Option<bool>,

@@ -74,8 +74,16 @@ pub struct SimSpec {
     pub samples_per_step: usize,
     /// Report every this many steps (default 10).
     pub every: usize,
+    /// Also report about this many log-spaced steps per decade between step 1 and `every`, so
+    /// that a log-time axis shows a transient shorter than `every` steps (default 0: none). See
+    /// [`crate::scenario::Scenario::report_steps`].
+    pub reports_per_decade: usize,
     /// The run whose agent paths are recorded (default 0).
     pub paths_run: usize,
+    /// Keep in `paths.csv` and the path figures a log-spaced subset of the reported steps, at
+    /// most this many per decade (default 0: every reported step). See
+    /// [`crate::scenario::Scenario::path_reports`].
+    pub paths_per_decade: usize,
     /// Run a closed loop past its stability bound, and end with success even when an estimator
     /// diverges (default false: both are refused / reported as failures).
     pub allow_divergence: bool,
@@ -90,7 +98,9 @@ impl Default for SimSpec {
             seed: 1,
             samples_per_step: 10,
             every: 10,
+            reports_per_decade: 0,
             paths_run: 0,
+            paths_per_decade: 0,
             allow_divergence: false,
         }
     }
@@ -321,6 +331,50 @@ pub struct MetricsSpec {
     pub edge: Option<[usize; 2]>,
 }
 
+/// When a run of a sweep counts as stable (`stable_share`): the tracking error δ (over the
+/// agents present) is finite at every reported step and its mean over `final` is at most
+/// `factor` times its mean over `reference` (e.g. the second before the agents depart).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StableSpec {
+    /// The reference window `[t0, t1]` in seconds (before the failure).
+    pub reference: [f64; 2],
+    /// The final window `[t0, t1]` in seconds.
+    #[serde(rename = "final")]
+    pub final_window: [f64; 2],
+    /// The allowed growth (default 10).
+    #[serde(default = "default_stable_factor")]
+    pub factor: f64,
+}
+
+fn default_stable_factor() -> f64 {
+    10.0
+}
+
+/// A parameter sweep: the scenario is run once per value of one key; `summary.csv` holds
+/// per-value summaries over the runs (DESIGN.md), `sweep_metrics.csv` every value's metrics over
+/// time, and `metrics.csv` the scenario as written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    /// The key that varies, dotted as in the scenario file: `faults.availability`,
+    /// `faults.random_departures.share`, `faults.departures[0].at`, `faults`,
+    /// `control.follower_gain`, `sim.dt`, `estimators.<label>.<option>`, …
+    pub parameter: String,
+    /// The values it takes (numbers, or any value the key accepts, e.g. a `[faults]` table).
+    pub values: Vec<serde_json::Value>,
+    /// Names of the values in outputs (required when a value is not a number).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<Vec<String>>,
+    /// The window `[t0, t1]` (seconds) of the time averages `<metric>_mean` (default: the whole
+    /// run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<[f64; 2]>,
+    /// When a run counts as stable (then `stable_share` is reported).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stable: Option<StableSpec>,
+}
+
 /// A figure to draw from the results (the CLI draws; the library only carries the request).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
@@ -340,9 +394,16 @@ pub enum PlotSpec {
         /// Logarithmic time axis (shows the transient).
         #[serde(default)]
         log_x: bool,
+        /// A zoomed inset over this time interval `[from, to]` in seconds (e.g. the transient
+        /// on the papers' linear time axis).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        inset: Option<[f64; 2]>,
         /// Estimator labels to show (default: all).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         estimators: Option<Vec<String>>,
+        /// Legend text per estimator label, with `_{…}`/`^{…}` markup (default: the labels).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        legend: Option<std::collections::BTreeMap<String, String>>,
     },
     /// Agent paths of the recorded run.
     Paths {
@@ -354,6 +415,9 @@ pub enum PlotSpec {
         /// Estimator labels to show (default: all).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         estimators: Option<Vec<String>>,
+        /// Legend text per estimator label, with `_{…}`/`^{…}` markup (default: the labels).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        legend: Option<std::collections::BTreeMap<String, String>>,
     },
     /// One agent's input over time in the recorded run.
     Inputs {
@@ -367,7 +431,89 @@ pub enum PlotSpec {
         /// Estimator labels to show (default: all).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         estimators: Option<Vec<String>>,
+        /// Legend text per estimator label, with `_{…}`/`^{…}` markup (default: the labels).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        legend: Option<std::collections::BTreeMap<String, String>>,
     },
+    /// A grid of panels of metrics over time: one row per entry of `rows` (the metrics drawn
+    /// together), one column per sweep value (`columns = "points"`) or one column; in each panel
+    /// one curve per estimator and metric (`series = "estimators"`) or per sweep value
+    /// (`series = "points"`).
+    Panels {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// Metrics per row.
+        rows: Vec<Vec<String>>,
+        /// `"points"`: one column per sweep value; `"single"` (default): the scenario as written.
+        #[serde(default = "default_single")]
+        columns: String,
+        /// `"estimators"` (default) or `"points"`.
+        #[serde(default = "default_estimators")]
+        series: String,
+        /// Band around each mean: `"std"` (default, ±1σ over the runs), `"min-max"` (the
+        /// metrics `<metric>_min` / `<metric>_max`), `"none"`.
+        #[serde(default = "default_std")]
+        band: String,
+        /// Logarithmic y axes.
+        #[serde(default)]
+        log_y: bool,
+        /// Draw `tr Θ*(t)` of the maneuver as a dashed reference.
+        #[serde(default)]
+        target_trace: bool,
+        /// Time window `[t0, t1]` shown (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        window: Option<[f64; 2]>,
+        /// Estimator labels to show (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        estimators: Option<Vec<String>>,
+    },
+    /// A sweep summary against the swept value: mean ± 1σ over the runs (a share: the share
+    /// alone). `with` adds the same summary of other scenarios (a reproduction's companions).
+    Summary {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// The summary metric (`tracking_error_mean`, `stable_share`, …).
+        metric: String,
+        /// The x axis label (default: the parameter).
+        #[serde(default)]
+        x_label: String,
+        /// Logarithmic y axis.
+        #[serde(default)]
+        log_y: bool,
+        /// Estimator labels to show (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        estimators: Option<Vec<String>>,
+    },
+    /// GA-RKF's convergence indicator against the tracking error with Theorem 1's bound
+    /// `c·δ + b` (c and b averaged over the agents of the nominal graph; Li & Rajan Fig. 9).
+    Indicator {
+        /// File stem of the image.
+        file: String,
+        /// Title.
+        #[serde(default)]
+        title: String,
+        /// The GA-RKF estimator's label.
+        estimator: String,
+        /// Time window `[t0, t1]` shown (default: all).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        window: Option<[f64; 2]>,
+    },
+}
+
+fn default_single() -> String {
+    "single".into()
+}
+fn default_estimators() -> String {
+    "estimators".into()
+}
+fn default_std() -> String {
+    "std".into()
 }
 
 impl PlotSpec {
@@ -376,7 +522,10 @@ impl PlotSpec {
         match self {
             PlotSpec::Metric { file, .. }
             | PlotSpec::Paths { file, .. }
-            | PlotSpec::Inputs { file, .. } => file,
+            | PlotSpec::Inputs { file, .. }
+            | PlotSpec::Panels { file, .. }
+            | PlotSpec::Summary { file, .. }
+            | PlotSpec::Indicator { file, .. } => file,
         }
     }
     /// Title.
@@ -384,7 +533,10 @@ impl PlotSpec {
         match self {
             PlotSpec::Metric { title, .. }
             | PlotSpec::Paths { title, .. }
-            | PlotSpec::Inputs { title, .. } => title,
+            | PlotSpec::Inputs { title, .. }
+            | PlotSpec::Panels { title, .. }
+            | PlotSpec::Summary { title, .. }
+            | PlotSpec::Indicator { title, .. } => title,
         }
     }
     /// The estimator labels it restricts to.
@@ -392,7 +544,27 @@ impl PlotSpec {
         match self {
             PlotSpec::Metric { estimators, .. }
             | PlotSpec::Paths { estimators, .. }
-            | PlotSpec::Inputs { estimators, .. } => estimators.as_deref(),
+            | PlotSpec::Inputs { estimators, .. }
+            | PlotSpec::Panels { estimators, .. }
+            | PlotSpec::Summary { estimators, .. } => estimators.as_deref(),
+            PlotSpec::Indicator { estimator, .. } => Some(std::slice::from_ref(estimator)),
+        }
+    }
+    /// The legend text of estimator `label` (with markup): the plot's `legend` entry, or the
+    /// label itself.
+    pub fn legend_text<'a>(&'a self, label: &'a str) -> &'a str {
+        self.legend()
+            .and_then(|m| m.get(label))
+            .map_or(label, String::as_str)
+    }
+    /// The legend entries given (label → text).
+    pub fn legend(&self) -> Option<&std::collections::BTreeMap<String, String>> {
+        match self {
+            PlotSpec::Metric { legend, .. }
+            | PlotSpec::Paths { legend, .. }
+            | PlotSpec::Inputs { legend, .. } => legend.as_ref(),
+            // The GA-RKF figures name their curves themselves.
+            PlotSpec::Panels { .. } | PlotSpec::Summary { .. } | PlotSpec::Indicator { .. } => None,
         }
     }
 }
@@ -468,6 +640,9 @@ pub struct ScenarioSpec {
     /// Metric options.
     #[serde(default)]
     pub metrics: MetricsSpec,
+    /// A parameter sweep (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepSpec>,
     /// Estimators to compare (paired: same initial positions, noise and faults).
     pub estimators: Vec<EstimatorEntry>,
     /// Figures.
@@ -494,6 +669,7 @@ impl ScenarioSpec {
             faults: FaultSpec::default(),
             maneuver: None,
             metrics: MetricsSpec::default(),
+            sweep: None,
             estimators: estimators.iter().map(|k| EstimatorEntry::kind(k)).collect(),
             plots: Vec::new(),
         }

@@ -26,9 +26,29 @@ pub struct StudyCost {
 /// machine; see the README's speed section).
 const NS_PER_NORMAL: f64 = 6.0;
 const NS_PER_FLOP: f64 = 0.5;
+/// Nanoseconds per output row written (a `metrics.csv` row, or one agent's `paths.csv` row, and
+/// its share of the figures): measured ≈ 1 µs on this project's machine, where a study that
+/// reports every step spends more time writing its outputs than simulating.
+const NS_PER_OUTPUT_ROW: f64 = 1000.0;
 
-/// Estimates the cost of running `runs` of the scenario's runs on `threads` threads.
+/// Estimates the cost of running `runs` of the scenario's runs on `threads` threads; a sweep
+/// runs the scenario once per value besides itself, and each of those counts.
 pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
+    let mut c = cost_one(sc, runs, threads);
+    if sc.sweep().is_some() {
+        // An invalid point fails before it runs; it costs nothing.
+        for p in sc.sweep_points().unwrap_or_default() {
+            let q = cost_one(&p.scenario, runs, threads);
+            c.bytes += q.bytes;
+            c.seconds += q.seconds;
+            c.shared_seconds += q.shared_seconds;
+        }
+    }
+    c
+}
+
+/// [`cost`] of the scenario alone (without its sweep points).
+fn cost_one(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let model = sc.model();
     let d = model.dim as f64;
     let n = model.agents as f64;
@@ -43,6 +63,7 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut bytes = 0.0;
     let mut per_run_flops = 0.0;
     let mut shared_flops = 0.0;
+    let mut output_rows = 0.0;
     let q = Factor::of(&model.q, model.dim);
     let draws = md + nd;
     let world_flops = match q {
@@ -54,6 +75,7 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     for e in sc.estimators() {
         let metrics = sc.metrics_of(e).len() as f64;
         bytes += 2.0 * metrics * reports * runs_f * 8.0;
+        output_rows += reports * (metrics + n);
         bytes += 2.0 * 2.0 * reports * nd * 8.0;
         let c = e.config().cost(model);
         bytes += runs_f * (c.bytes_per_run + (4.0 * nd + 4.0 * md) * 8.0);
@@ -64,9 +86,10 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let per_run_ns = draws * NS_PER_NORMAL + (world_flops + per_run_flops) * NS_PER_FLOP;
     let seconds_runs = runs_f * steps * per_run_ns * 1e-9 / threads;
     let shared_seconds = steps * shared_flops * NS_PER_FLOP * 1e-9;
+    let output_seconds = output_rows * NS_PER_OUTPUT_ROW * 1e-9;
     StudyCost {
         bytes,
-        seconds: seconds_runs + shared_seconds,
+        seconds: seconds_runs + shared_seconds + output_seconds,
         shared_seconds,
     }
 }

@@ -37,6 +37,12 @@ pub trait Metric: Send + Sync {
     fn name(&self) -> &str;
     /// One value per run into `out`.
     fn measure(&self, m: &Measure<'_>, out: &mut [f64]);
+    /// Whether a NaN value means "undefined in this run at this step" (e.g. GA-RKF's ψ before
+    /// any agent has one) rather than a divergence. Statistics then use the runs where it is
+    /// defined; an infinite value still stops the estimator.
+    fn partial(&self) -> bool {
+        false
+    }
 }
 
 /// `ε_k²` over the tracked edges.
@@ -153,6 +159,9 @@ impl Metric for Quantity {
         if !m.estimator.quantity(self.0, m.step, out) {
             out.fill(f64::NAN);
         }
+    }
+    fn partial(&self) -> bool {
+        true
     }
 }
 

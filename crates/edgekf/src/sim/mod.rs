@@ -28,6 +28,7 @@ pub(crate) mod faults;
 pub mod metrics;
 pub(crate) mod sensing;
 pub mod stats;
+pub mod sweep;
 pub mod world;
 
 use std::ops::Range;
@@ -593,6 +594,26 @@ fn run_chunk(
             // True edges, measurements and prediction increments.
             let vbar = &sensing.vbar[lane.noise];
             for (e, &(i, j)) in edges.iter().enumerate() {
+                if d == 2 {
+                    // Both coordinates of an edge in one pass over the runs.
+                    let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
+                    let (x0, x1) = lane.x[re..re + 2 * runs].split_at_mut(runs);
+                    let (y0, y1) = lane.y[re..re + 2 * runs].split_at_mut(runs);
+                    let (d0, d1) = lane.du[re..re + 2 * runs].split_at_mut(runs);
+                    let (zi, zj) = (&lane.z[ri..ri + 2 * runs], &lane.z[rj..rj + 2 * runs]);
+                    let (ui, uj) = (&lane.u[ri..ri + 2 * runs], &lane.u[rj..rj + 2 * runs]);
+                    let v = &vbar[re..re + 2 * runs];
+                    for r in 0..runs {
+                        let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
+                        x0[r] = a;
+                        x1[r] = b;
+                        y0[r] = a + v[r];
+                        y1[r] = b + v[runs + r];
+                        d0[r] = dt * (ui[r] - uj[r]);
+                        d1[r] = dt * (ui[runs + r] - uj[runs + r]);
+                    }
+                    continue;
+                }
                 for a in 0..d {
                     let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
                     let (zi, zj) = (&lane.z[ri..ri + runs], &lane.z[rj..rj + runs]);
@@ -642,7 +663,11 @@ fn run_chunk(
                 for (metric, vals) in lane.metrics.iter().zip(lane.out.values.iter_mut()) {
                     let out = &mut vals[next_report * runs..(next_report + 1) * runs];
                     metric.measure(&meas, out);
-                    if let Some(r) = out.iter().position(|v| !v.is_finite()) {
+                    let partial = metric.partial();
+                    if let Some(r) = out
+                        .iter()
+                        .position(|v| !(v.is_finite() || partial && v.is_nan()))
+                    {
                         if lane.out.stop.is_none() {
                             lane.out.stop = Some(Stop {
                                 report: next_report,

@@ -59,6 +59,19 @@ impl Sensing {
         let (d, runs) = (self.d, self.runs);
         for (f, v) in self.factors.iter().zip(self.vbar.iter_mut()) {
             let m = f.len() / (d * d);
+            if d == 2 {
+                // Both coordinates of an edge in one pass over the runs.
+                for e in 0..m {
+                    let c = &f[e * 4..e * 4 + 4];
+                    let (v0, v1) = v[e * 2 * runs..(e + 1) * 2 * runs].split_at_mut(runs);
+                    let (h0, h1) = eta[e * 2 * runs..(e + 1) * 2 * runs].split_at(runs);
+                    for (((a, b), x), y) in v0.iter_mut().zip(v1.iter_mut()).zip(h0).zip(h1) {
+                        *a = c[0] * x + c[1] * y;
+                        *b = c[2] * x + c[3] * y;
+                    }
+                }
+                continue;
+            }
             for e in 0..m {
                 let span = e * d * runs..(e + 1) * d * runs;
                 batch_gemv(

@@ -1,0 +1,702 @@
+//! `garkf`: the geometry-aware relative Kalman filter (GA-RKF) of Li & Rajan, Algorithm 1, with
+//! the corrections of the GA-RKF issue.
+//!
+//! Every directed edge `(i, j)` carries the CA filter of [`super::rkf_ca`] (eqs. 5–7). When agent
+//! i did not receive the edge's measurement at step k (`β_ij,k = 0`), it reconstructs it from the
+//! formation's geometry and corrects with that instead (eq. 8), weighted by (10). Per agent i
+//! present at step k, in this order:
+//!
+//! 1. **RAL** (12)–(14), lines 3–8: from the observed neighbours `N_{i,k}`,
+//!    `A_i = Σ_j p_ij p_ijᵀ`, `M_i = Σ_j y_ij p_ijᵀ`, `Θ̂^ral_i = M_i A_i⁻¹` (or the constrained
+//!    variant of Table 2, option `ral`; [`super::ral::estimate_from_sums`]), feasible per Def. 2.
+//! 2. **Convergence indicator** (18), line 10: `ψ_i = (1/|P_i|) Σ_{j∈P_i} ‖Θ̂^ral_i − Θ̂^ral_j‖²_F`
+//!    with `Θ̂^ral_j` received over the observed edges.
+//! 3. **Consensus** (16), line 11:
+//!    `Θ̂_{i,k} = Θ̂_{i,k−1} + ε [Σ_{j∈N_{i,k}} (Θ̂_{j,k−1} − Θ̂_{i,k−1}) + Σ_{j∈J_{i,k}} (Θ̂^ral_{j,k} − Θ̂_{i,k−1})]`,
+//!    `J_{i,k} = N_{i,k} ∪ {i}`; `Θ̂_{i,0} = 0` (the
+//!    paper gives no start; 0 is what line 7 feeds an agent without RAL).
+//! 4. **Edges**, lines 12–21: for every edge of i, predict (`Λ⁻ = F Λ Fᵀ + Q`, `γ̂⁻ = F γ̂`) and
+//!    correct in Joseph form with the composite observation (8)/(10): the measurement `y_ij` with
+//!    `R_ij` when observed, else `ẑ^geo_ij = Θ̂_{i,k} p_ij` with
+//!    `R̃ = R^geo_ij + ψ_i I`, `R^geo = R^ral / N` (17), `R^ral_ij = (p_ijᵀ A_i⁻¹ p_ij) R_ij` (15)
+//!    ([`super::ral::RalEstimate::covariance_from_gram`] for the constrained variants).
+//!
+//! Messages: agent i hears j (`Θ̂_{j,k−1}`, `Θ̂^ral_{j,k}`) exactly when it received the
+//! measurement of edge `(i, j)`: one availability draw removes measurement and message (the
+//! paper has no separate communication model). Every present agent, leaders included, runs the
+//! geometry; a departed agent runs nothing (its state holds) and its neighbours neither measure
+//! nor hear it.
+//!
+//! # Corrections to Algorithm 1 (the GA-RKF issue; findings in the README's GA-RKF section)
+//! - **Prediction every step.** Lines 17–19 correct from `Λ_{k−1}`, `γ̂_{k−1}` without a
+//!   prediction, contradicting §IV-D ("predictions … are run for all time steps"); here every
+//!   step predicts.
+//! - **Joseph form** for every correction (line 19 prints `(I − KG)Λ`).
+//! - **An infeasible RAL is unavailable, not zero** (option `infeasible = "masked"`, the
+//!   default): it enters neither the consensus sum over `J_i` nor ψ. `infeasible = "literal"`
+//!   keeps line 7's reading (`Θ̂^ral = 0`, counted in (16) and (18)) to show the difference.
+//! - **ψ over feasible pairs only, held when undefined.** With masking, `P_i` is the observed
+//!   neighbours whose RAL is feasible, and ψ is defined only when i's own RAL is feasible and
+//!   `P_i` is not empty; otherwise ψ_i keeps its last value. Before its first value agent i
+//!   makes no geometric correction (nothing says how much to trust it).
+//! - **The consensus step ε is checked against its stability bound.** Stacked per entry of Θ,
+//!   (16) is `θ ← (I − ε M) θ + ε u` with `M = L_k + diag|J_i|`; it is stable iff
+//!   `ε < 2 / λ_max(M)` for an undirected functional graph. For undirected losses `M_k ⪯ M`
+//!   of the nominal graph with every RAL feasible (both terms only lose positive semidefinite
+//!   parts), so the nominal bound covers every such functional graph; one-way losses make `M_k`
+//!   non-symmetric and are not covered by that argument (the tests sample them). An ε at or
+//!   above the nominal bound is refused naming the bound (`epsilon_policy = "refuse"`, the
+//!   default) or lowered to 80 % of it (`epsilon_policy = "scale"`; ε = 0.08 is 79 % of the
+//!   hexagon's bound 0.1012).
+//! - **(15) with the common R**: `(p_ijᵀ H†ᵀ ⊗ I)(I ⊗ R)(H† p_ij ⊗ I) = (p_ijᵀ A⁻¹ p_ij) R`, and
+//!   (17) divides by N once (the peer implementation divides a second time).
+//! - R^ral needs `A_i` of a feasible step: when i's RAL is infeasible now, the geometry of its
+//!   last feasible step is used (the consensus estimate `Θ̂_i` is still current).
+//!
+//! # Metrics
+//! `cov_trace`, `edge_cov_trace` as `rkf-ca`; `psi` = mean of the held ψ_i over the present
+//! agents that have one (NaN in a run where none has: undefined, not a divergence);
+//! `theta_error` = mean over present agents of `‖Θ̂_i − Θ*‖²_F`; `theta_ral_error` = the same for
+//! `Θ̂^ral_i` over the agents whose RAL is feasible at this step (literal: every present agent,
+//! zeros included); `theta_trace` (`_min`, `_max`) = the mean (smallest, largest) over present
+//! agents of `tr Θ̂_i`, `theta_ral_trace` (`_min`, `_max`) the same for `Θ̂^ral_i` over the agents
+//! whose RAL is feasible (Li & Rajan Fig. 8 plots each agent's `tr Θ̂`); `pcrb_trace` = the
+//! position-block trace of the corrected PCRB (23) of the `[metrics] edge`, fed with the
+//! observations this filter used.
+//!
+//! # References
+//! Z. Li and R. T. Rajan, IEEE OJCSYS 5 (2026), eqs. (5)–(18), (23), Algorithm 1, Table 2,
+//! Appendix A; R. Olfati-Saber & J. Shamma, CDC 2005.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use nalgebra::SMatrix;
+use serde::{Deserialize, Serialize};
+
+use super::ca::{packed_index, packed_len};
+use super::pcrb::Observation;
+use super::ral::{
+    consensus_stability, estimate_from_sums, InfeasibleRal, RalEstimate, RalOptions, RalSums,
+    RalVariant,
+};
+use super::rkf_ca::{
+    ca_cost, check_ca, default_sigma_w, pcrb_runs, quantity_ca, Bound, CaEdges, PcrbTrack,
+};
+use super::{
+    options_of, parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+};
+
+/// `kind = "garkf"`.
+#[derive(Debug, Clone, Copy)]
+pub struct GarkfKind;
+
+/// The paper's consensus step size (§VI-A).
+pub const DEFAULT_EPSILON: f64 = 0.08;
+
+/// Share of the stability bound `2 / λ_max` that `epsilon_policy = "scale"` uses.
+pub const EPSILON_SCALE: f64 = 0.8;
+
+/// What to do with an ε at or above the consensus stability bound of the nominal graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EpsilonPolicy {
+    /// Refuse the scenario, naming the bound.
+    #[default]
+    Refuse,
+    /// Use `EPSILON_SCALE · 2 / λ_max` instead.
+    Scale,
+}
+
+fn default_epsilon() -> f64 {
+    DEFAULT_EPSILON
+}
+
+/// Options of `garkf`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GarkfOptions {
+    /// σ_w of (7) (default 1).
+    #[serde(default = "default_sigma_w")]
+    sigma_w: f64,
+    /// ε of (16) (default 0.08).
+    #[serde(default = "default_epsilon")]
+    epsilon: f64,
+    /// The RAL solution of Table 2 (default `general`).
+    #[serde(default)]
+    ral: RalVariant,
+    /// How an infeasible RAL enters (16) and (18) (default `masked`).
+    #[serde(default)]
+    infeasible: InfeasibleRal,
+    /// ε at or above its bound: `refuse` (default) or `scale`.
+    #[serde(default)]
+    epsilon_policy: EpsilonPolicy,
+}
+
+/// The consensus step size bound of the nominal graph with every RAL feasible.
+///
+/// # Errors
+/// A message when the eigenvalues do not converge.
+pub fn nominal_epsilon_bound(m: &Model) -> Result<f64, String> {
+    let s = consensus_stability(
+        m.agents,
+        &m.edges,
+        &vec![true; m.agents],
+        InfeasibleRal::Masked,
+        0.0,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(s.eps_bound)
+}
+
+impl EstimatorKind for GarkfKind {
+    fn name(&self) -> &'static str {
+        "garkf"
+    }
+    fn about(&self) -> &'static str {
+        "geometry-aware relative Kalman filter (Li & Rajan Alg. 1, corrected)"
+    }
+    fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
+        let opt: GarkfOptions = parse_options(o)?;
+        check_ca(m, opt.sigma_w)?;
+        if !(opt.epsilon.is_finite() && opt.epsilon > 0.0) {
+            return Err(format!(
+                "option `epsilon` must be positive and finite, got {}",
+                opt.epsilon
+            ));
+        }
+        if matches!(opt.ral, RalVariant::Rotation | RalVariant::Similarity) && m.dim < 2 {
+            return Err(format!(
+                "option `ral`: `{}` needs D = 2 or 3, got D = {}",
+                serde_json::to_value(opt.ral)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+                m.dim
+            ));
+        }
+        let bound = nominal_epsilon_bound(m)?;
+        let eps = if opt.epsilon < bound {
+            opt.epsilon
+        } else {
+            match opt.epsilon_policy {
+                EpsilonPolicy::Refuse => {
+                    return Err(format!(
+                        "option `epsilon` = {} is at or above the stability bound 2/λ_max(L + diag|J_i|) = {bound:.4} of the consensus (16) on this graph; lower it or set `epsilon_policy = \"scale\"` (uses {:.4})",
+                        opt.epsilon,
+                        EPSILON_SCALE * bound
+                    ))
+                }
+                EpsilonPolicy::Scale => EPSILON_SCALE * bound,
+            }
+        };
+        Ok(Arc::new(Config { opt, eps }))
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Config {
+    opt: GarkfOptions,
+    /// The ε used.
+    eps: f64,
+}
+
+impl Config {
+    fn settings(&self) -> Settings {
+        Settings {
+            sigma_w: self.opt.sigma_w,
+            eps: self.eps,
+            variant: self.opt.ral,
+            mode: self.opt.infeasible,
+        }
+    }
+}
+
+/// The checked settings of a GA-RKF.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// σ_w.
+    pub sigma_w: f64,
+    /// The consensus step ε used (after `epsilon_policy`).
+    pub eps: f64,
+    /// The RAL variant.
+    pub variant: RalVariant,
+    /// How infeasible RALs enter.
+    pub mode: InfeasibleRal,
+}
+
+impl Configured for Config {
+    fn options(&self) -> Options {
+        options_of(&self.opt)
+    }
+
+    fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        let st = self.settings();
+        match m.dim {
+            1 => Box::new(Garkf::<1>::new(
+                m,
+                st,
+                samples,
+                runs,
+                pcrb_runs::<1, 3>(m, st.sigma_w, samples, runs, Bound::Ga),
+            )),
+            2 => Box::new(Garkf::<2>::new(
+                m,
+                st,
+                samples,
+                runs,
+                pcrb_runs::<2, 6>(m, st.sigma_w, samples, runs, Bound::Ga),
+            )),
+            _ => Box::new(Garkf::<3>::new(
+                m,
+                st,
+                samples,
+                runs,
+                pcrb_runs::<3, 9>(m, st.sigma_w, samples, runs, Bound::Ga),
+            )),
+        }
+    }
+
+    fn metrics(&self) -> &'static [&'static str] {
+        &[
+            "edge_cov_trace",
+            "psi",
+            "theta_error",
+            "theta_ral_error",
+            "theta_trace",
+            "theta_trace_min",
+            "theta_trace_max",
+            "theta_ral_trace",
+            "theta_ral_trace_min",
+            "theta_ral_trace_max",
+            "pcrb_trace",
+        ]
+    }
+
+    fn cost(&self, m: &Model) -> Cost {
+        let mut c = ca_cost(m);
+        let d2 = (m.dim * m.dim) as f64;
+        c.bytes_per_run += m.agents as f64 * 8.0 * (6.0 * d2 + 4.0);
+        c.flops_per_run_step += m.num_edges() as f64 * 12.0 * d2 + m.agents as f64 * 40.0 * d2;
+        c
+    }
+
+    fn shared_gain(&self, _m: &Model) -> bool {
+        false
+    }
+}
+
+type Mat<const D: usize> = SMatrix<f64, D, D>;
+type Vect<const D: usize> = SMatrix<f64, D, 1>;
+
+/// The last feasible RAL of an agent (for R^ral while its RAL is infeasible).
+#[derive(Debug, Clone, Copy)]
+struct Held<const D: usize> {
+    est: RalEstimate<D>,
+    gram: Mat<D>,
+}
+
+/// GA-RKF on every directed edge for a batch of runs. Per-(agent, run) state is stored agent-major
+/// (`i · runs + r`).
+#[derive(Debug)]
+pub struct Garkf<const D: usize> {
+    ca: CaEdges<D>,
+    metric_edge: Option<usize>,
+    pcrb: Option<Box<dyn PcrbTrack<D>>>,
+    st: Settings,
+    opts: RalOptions,
+    agents: usize,
+    /// N of (17).
+    n_agents: f64,
+    agent_edges: Vec<Range<usize>>,
+    /// `p_ij` and `p_ij p_ijᵀ` per directed edge.
+    p: Vec<Vect<D>>,
+    pp: Vec<Mat<D>>,
+    feasible: Vec<bool>,
+    theta_ral: Vec<Mat<D>>,
+    theta: Vec<Mat<D>>,
+    theta_prev: Vec<Mat<D>>,
+    held: Vec<Option<Held<D>>>,
+    psi: Vec<f64>,
+    has_psi: Vec<bool>,
+    /// Scratch of the metric edge: this step's observation per run.
+    obs: Vec<Observation<D>>,
+    geometric_updates: u64,
+}
+
+impl<const D: usize> Garkf<D> {
+    fn new(
+        m: &Model,
+        st: Settings,
+        samples: usize,
+        runs: usize,
+        pcrb: Option<Box<dyn PcrbTrack<D>>>,
+    ) -> Self {
+        let fw = &m.framework;
+        let p: Vec<Vect<D>> = m
+            .edges
+            .iter()
+            .map(|&(i, j)| Vect::<D>::from_fn(|a, _| fw.point(i)[a] - fw.point(j)[a]))
+            .collect();
+        let pp = p.iter().map(|v| v * v.transpose()).collect();
+        let na = m.agents * runs;
+        Self {
+            ca: CaEdges::new(m, st.sigma_w, samples, runs),
+            metric_edge: m.metric_edge,
+            pcrb,
+            st,
+            opts: RalOptions::default(),
+            agents: m.agents,
+            n_agents: m.agents as f64,
+            agent_edges: m.agent_edges.clone(),
+            p,
+            pp,
+            feasible: vec![false; na],
+            theta_ral: vec![Mat::<D>::zeros(); na],
+            theta: vec![Mat::<D>::zeros(); na],
+            theta_prev: vec![Mat::<D>::zeros(); na],
+            held: vec![None; na],
+            psi: vec![0.0; na],
+            has_psi: vec![false; na],
+            obs: vec![Observation::Missing; runs],
+            geometric_updates: 0,
+        }
+    }
+
+    /// The checked settings.
+    pub fn settings(&self) -> Settings {
+        self.st
+    }
+
+    /// Number of geometric corrections made so far (all edges and runs).
+    pub fn geometric_updates(&self) -> u64 {
+        self.geometric_updates
+    }
+
+    /// `Θ̂_i` (consensus) of agent `i` in run `r`.
+    pub fn theta(&self, i: usize, r: usize) -> Mat<D> {
+        self.theta[i * self.ca.runs + r]
+    }
+
+    /// `Θ̂^ral_i` of agent `i` in run `r` at the last step (`None`: infeasible).
+    pub fn theta_ral(&self, i: usize, r: usize) -> Option<Mat<D>> {
+        let k = i * self.ca.runs + r;
+        self.feasible[k].then(|| self.theta_ral[k])
+    }
+
+    /// The held ψ_i of agent `i` in run `r` (`None` before its first value).
+    pub fn psi(&self, i: usize, r: usize) -> Option<f64> {
+        let k = i * self.ca.runs + r;
+        self.has_psi[k].then(|| self.psi[k])
+    }
+
+    /// Posterior covariance (3D × 3D) of edge `e` in run `r`.
+    pub fn covariance(&self, e: usize, r: usize) -> nalgebra::DMatrix<f64> {
+        self.ca.banks[e].covariance(r)
+    }
+
+    /// Lines 3–8: every present agent's RAL.
+    fn ral(&mut self, s: &Step<'_>) {
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        for i in 0..self.agents {
+            for r in 0..runs {
+                let k = i * runs + r;
+                self.feasible[k] = false;
+                self.theta_ral[k] = Mat::<D>::zeros();
+                if faults && !f.present(i, r) {
+                    continue;
+                }
+                let mut sums = RalSums {
+                    gram: Mat::<D>::zeros(),
+                    cross: Mat::<D>::zeros(),
+                    gram_y: Mat::<D>::zeros(),
+                    neighbours: 0,
+                };
+                for e in self.agent_edges[i].clone() {
+                    if !f.observed(e, r) {
+                        continue;
+                    }
+                    let y = Vect::<D>::from_fn(|a, _| s.y[(e * D + a) * runs + r]);
+                    sums.gram += self.pp[e];
+                    sums.cross += y * self.p[e].transpose();
+                    sums.neighbours += 1;
+                }
+                if let Ok(est) = estimate_from_sums(self.st.variant, &sums, &self.opts) {
+                    self.feasible[k] = true;
+                    self.theta_ral[k] = est.theta;
+                    self.held[k] = Some(Held {
+                        est,
+                        gram: sums.gram,
+                    });
+                }
+            }
+        }
+    }
+
+    /// Line 10: ψ (18), over feasible pairs (masked) or every observed pair (literal); held
+    /// when undefined.
+    fn indicator(&mut self, s: &Step<'_>) {
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        let literal = self.st.mode == InfeasibleRal::Literal;
+        for i in 0..self.agents {
+            for r in 0..runs {
+                let k = i * runs + r;
+                if (faults && !f.present(i, r)) || (!literal && !self.feasible[k]) {
+                    continue;
+                }
+                let own = self.theta_ral[k];
+                let (mut sum, mut count) = (0.0, 0usize);
+                for e in self.agent_edges[i].clone() {
+                    if !f.observed(e, r) {
+                        continue;
+                    }
+                    let kj = self.ca.edges[e].1 * runs + r;
+                    if literal || self.feasible[kj] {
+                        sum += (own - self.theta_ral[kj]).norm_squared();
+                        count += 1;
+                    }
+                }
+                if count > 0 {
+                    self.psi[k] = sum / count as f64;
+                    self.has_psi[k] = true;
+                }
+            }
+        }
+    }
+
+    /// Line 11: the consensus (16) from `Θ̂_{k−1}` and this step's RALs.
+    fn consensus(&mut self, s: &Step<'_>) {
+        std::mem::swap(&mut self.theta, &mut self.theta_prev);
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        let literal = self.st.mode == InfeasibleRal::Literal;
+        for i in 0..self.agents {
+            for r in 0..runs {
+                let k = i * runs + r;
+                let prev = self.theta_prev[k];
+                if faults && !f.present(i, r) {
+                    self.theta[k] = prev;
+                    continue;
+                }
+                let mut delta = Mat::<D>::zeros();
+                if literal || self.feasible[k] {
+                    delta += self.theta_ral[k] - prev;
+                }
+                for e in self.agent_edges[i].clone() {
+                    if !f.observed(e, r) {
+                        continue;
+                    }
+                    let kj = self.ca.edges[e].1 * runs + r;
+                    delta += self.theta_prev[kj] - prev;
+                    if literal || self.feasible[kj] {
+                        delta += self.theta_ral[kj] - prev;
+                    }
+                }
+                self.theta[k] = prev + delta * self.st.eps;
+            }
+        }
+    }
+
+    /// Lines 12–21 for edge `e`: predict, then correct with the composite observation.
+    fn edge_step(&mut self, e: usize, s: &Step<'_>) {
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        let (i, _) = self.ca.edges[e];
+        let track = self.metric_edge == Some(e) && self.pcrb.is_some();
+        let np = packed_len(D);
+        let w = self.ca.w[e];
+        let p = self.p[e];
+        self.ca.banks[e].predict(&self.ca.model);
+        {
+            let CaEdges {
+                mask,
+                rt,
+                yt,
+                w_packed,
+                ..
+            } = &mut self.ca;
+            let wp = &w_packed[e];
+            for r in 0..runs {
+                if f.observed(e, r) {
+                    mask[r] = true;
+                    for kk in 0..np {
+                        rt[kk * runs + r] = wp[kk * runs + r];
+                    }
+                    for a in 0..D {
+                        yt[a * runs + r] = s.y[(e * D + a) * runs + r];
+                    }
+                    if track {
+                        self.obs[r] = Observation::Direct;
+                    }
+                    continue;
+                }
+                mask[r] = false;
+                if track {
+                    self.obs[r] = Observation::Missing;
+                }
+                let k = i * runs + r;
+                if (faults && !f.present(i, r)) || !self.has_psi[k] {
+                    continue;
+                }
+                let Some(h) = &self.held[k] else {
+                    continue;
+                };
+                let Ok(r_ral) = h.est.covariance_from_gram(&h.gram, &p, &w) else {
+                    continue;
+                };
+                let mut rg = r_ral / self.n_agents;
+                for a in 0..D {
+                    rg[(a, a)] += self.psi[k];
+                }
+                let z = self.theta[k] * p;
+                if !(rg.iter().all(|v| v.is_finite()) && z.iter().all(|v| v.is_finite())) {
+                    continue;
+                }
+                mask[r] = true;
+                self.geometric_updates += 1;
+                for a in 0..D {
+                    yt[a * runs + r] = z[a];
+                    for b in a..D {
+                        rt[packed_index(D, a, b) * runs + r] = rg[(a, b)];
+                    }
+                }
+                if track {
+                    self.obs[r] = Observation::Geometric(rg);
+                }
+            }
+        }
+        let CaEdges {
+            banks,
+            mask,
+            rt,
+            yt,
+            ..
+        } = &mut self.ca;
+        banks[e].correct_cov(rt, mask);
+        banks[e].correct_mean(yt, mask);
+        self.ca.export(e);
+        if track {
+            if let Some(pc) = &mut self.pcrb {
+                for (r, o) in self.obs.iter().enumerate() {
+                    pc.step(r, o);
+                }
+            }
+        }
+    }
+}
+
+impl<const D: usize> Estimator for Garkf<D> {
+    fn step(&mut self, s: &Step<'_>) {
+        self.ral(s);
+        self.indicator(s);
+        self.consensus(s);
+        for e in 0..self.ca.edges.len() {
+            self.edge_step(e, s);
+        }
+    }
+
+    fn estimates(&self) -> &[f64] {
+        &self.ca.x
+    }
+
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
+        self.ca.cov_trace(s, out);
+    }
+
+    fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        let present = |i: usize, r: usize| !faults || f.present(i, r);
+        let literal = self.st.mode == InfeasibleRal::Literal;
+        match name {
+            "psi" => {
+                for (r, o) in out.iter_mut().enumerate() {
+                    let (mut sum, mut n) = (0.0, 0usize);
+                    for i in (0..self.agents).filter(|&i| present(i, r)) {
+                        let k = i * runs + r;
+                        if self.has_psi[k] {
+                            sum += self.psi[k];
+                            n += 1;
+                        }
+                    }
+                    *o = if n > 0 { sum / n as f64 } else { f64::NAN };
+                }
+                true
+            }
+            "theta_error" | "theta_ral_error" => {
+                let Some(t) = s.target else {
+                    return false;
+                };
+                let star = Mat::<D>::from_fn(|a, b| t.theta[a * D + b]);
+                let ral = name == "theta_ral_error";
+                for (r, o) in out.iter_mut().enumerate() {
+                    let (mut sum, mut n) = (0.0, 0usize);
+                    for i in (0..self.agents).filter(|&i| present(i, r)) {
+                        let k = i * runs + r;
+                        let th = if ral {
+                            if !(literal || self.feasible[k]) {
+                                continue;
+                            }
+                            self.theta_ral[k]
+                        } else {
+                            self.theta[k]
+                        };
+                        sum += (th - star).norm_squared();
+                        n += 1;
+                    }
+                    *o = if n > 0 { sum / n as f64 } else { f64::NAN };
+                }
+                true
+            }
+            "theta_trace"
+            | "theta_trace_min"
+            | "theta_trace_max"
+            | "theta_ral_trace"
+            | "theta_ral_trace_min"
+            | "theta_ral_trace_max" => {
+                let ral = name.starts_with("theta_ral");
+                let stat = if name.ends_with("_min") {
+                    -1
+                } else if name.ends_with("_max") {
+                    1
+                } else {
+                    0
+                };
+                for (r, o) in out.iter_mut().enumerate() {
+                    let (mut sum, mut n) = (0.0, 0usize);
+                    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                    for i in (0..self.agents).filter(|&i| present(i, r)) {
+                        let k = i * runs + r;
+                        let tr = if ral {
+                            if !(literal || self.feasible[k]) {
+                                continue;
+                            }
+                            self.theta_ral[k].trace()
+                        } else {
+                            self.theta[k].trace()
+                        };
+                        sum += tr;
+                        n += 1;
+                        lo = lo.min(tr);
+                        hi = hi.max(tr);
+                    }
+                    *o = match (n, stat) {
+                        (0, _) => f64::NAN,
+                        (_, -1) => lo,
+                        (_, 1) => hi,
+                        _ => sum / n as f64,
+                    };
+                }
+                true
+            }
+            other => quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), other, out),
+        }
+    }
+}
