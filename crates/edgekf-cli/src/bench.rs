@@ -85,7 +85,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             threads: args.threads,
             ..Overrides::default()
         };
-        crate::reproduce(&["all".to_string()], &dir, &over)?;
+        crate::reproduce(&["all".to_string()], &dir, &over, false)?;
         println!(
             "reproduce all ({} figures, paper scale): {:.2} s",
             registry::ENTRIES.len(),

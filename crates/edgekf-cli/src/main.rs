@@ -6,15 +6,21 @@
 //! - `edgekf reproduce NAME… | all --out DIR`, `edgekf reproduce --list`: the papers' figures;
 //! - `edgekf design`: stress design and rigidity checks of a framework;
 //! - `edgekf fit-ar`: the AR input model of chapter 6 from trial runs;
-//! - `edgekf bench`: closed-loop speed per estimator and the wall time of `reproduce`.
+//! - `edgekf bench`: closed-loop speed per estimator and the wall time of `reproduce`;
+//! - `edgekf report DIR`: a self-contained HTML page per study (and an index for a `reproduce`
+//!   output root);
+//! - `edgekf claims`: the papers' claims checked on the reproductions (`edgekf-claims`).
 //!
 //! Results go to files (written atomically, only after the study succeeded) and a short summary
 //! to stdout; logs and progress go to stderr.
 
 mod bench;
+mod claims;
 mod design;
 mod io;
 mod plot;
+mod plot_garkf;
+mod report;
 mod slam;
 mod summary;
 use edgekf_figure as figure;
@@ -82,8 +88,19 @@ enum Command {
         /// Print the reproducible names, one a line.
         #[arg(long)]
         list: bool,
+        /// Also write a self-contained HTML page per simulation (`report.html`) and
+        /// `index.html` (see `edgekf report`).
+        #[arg(long)]
+        report: bool,
         #[command(flatten)]
         over: Overrides,
+    },
+    /// Write a self-contained HTML page (`report.html`: figures, steady-state table, claims,
+    /// resolved scenario, provenance) for a study's output directory, or one per simulation and
+    /// `index.html` for a `reproduce` output root.
+    Report {
+        /// A study's output directory, or a `reproduce` output root.
+        dir: PathBuf,
     },
     /// Design the stress (Laplacian weights) of a framework, check it, write framework.json and
     /// framework.png.
@@ -107,6 +124,9 @@ enum Command {
     },
     /// Measure closed-loop speed per estimator and the wall time of reproducing the figures.
     Bench(bench::BenchArgs),
+    /// Check the papers' claims on the reproductions: a table (or JSON) with each claim, the
+    /// paper's value, ours ± its standard error, and the verdict.
+    Claims(claims::ClaimsArgs),
 }
 
 /// Exit code when an estimator diverged (1: an error, 2: a usage error).
@@ -258,6 +278,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                         bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
                     }
                     slam::run_text(&source, &text, &out, over.json)?;
+                    write_provenance(&out)?;
                     Ok(ExitCode::SUCCESS)
                 }
                 io::Kind::Filters => {
@@ -278,6 +299,25 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                         None => 0..sc.runs(),
                     };
                     check_cost(&sc, range.len(), pool.current_num_threads(), &over)?;
+                    if sc.sweep().is_some() {
+                        if shard.is_some() {
+                            bail!("flag `--shard`: a scenario with a [sweep] is not sharded; split its `values` over several scenario files instead");
+                        }
+                        let sw = pool.install(|| simulate_sweep(&sc))?;
+                        let mut st = io::Staged::new(&out)?;
+                        let extra = plot_garkf::Extra {
+                            sweep: Some(&sw),
+                            ..Default::default()
+                        };
+                        stage_outputs(&mut st, &sc, &sw.base, None, &extra)?;
+                        st.commit()?;
+                        eprintln!(
+                            "wrote {} (a sweep of {} values)",
+                            out.display(),
+                            sw.points.len()
+                        );
+                        return Ok(report(&sc, &sw.base, &over));
+                    }
                     let res = pool.install(|| simulate(&sc, range))?;
                     let mut st = io::Staged::new(&out)?;
                     match shard {
@@ -296,7 +336,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                             Ok(ExitCode::SUCCESS)
                         }
                         None => {
-                            stage_outputs(&mut st, &sc, &res, None)?;
+                            stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
                             st.commit()?;
                             eprintln!("wrote {}", out.display());
                             Ok(report(&sc, &res, &over))
@@ -310,6 +350,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
             names,
             out,
             list,
+            report,
             over,
         } => {
             if list {
@@ -319,7 +360,13 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                 return Ok(ExitCode::SUCCESS);
             }
             let out = out.context("flag `--out`: required without `--list`")?;
-            reproduce(&names, &out, &over)
+            reproduce(&names, &out, &over, report)
+        }
+        Command::Report { dir } => {
+            for p in report::run(&dir)? {
+                eprintln!("wrote {}", p.display());
+            }
+            Ok(ExitCode::SUCCESS)
         }
         Command::FitAr {
             scenario,
@@ -332,6 +379,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
         }
         Command::Bench(args) => bench::run(&args).map(|()| ExitCode::SUCCESS),
         Command::Design(args) => design::run(&args).map(|()| ExitCode::SUCCESS),
+        Command::Claims(args) => claims::run(&args).map(|()| ExitCode::SUCCESS),
     }
 }
 
@@ -528,30 +576,53 @@ pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results>
     Ok(res?)
 }
 
-fn stage_scenario(st: &mut io::Staged, sc: &Scenario) -> Result<()> {
-    let json =
-        serde_json::to_string_pretty(&sc.to_resolved()).context("cannot serialise the scenario")?;
-    st.write("scenario.json", json.as_bytes())
+/// `DIR/provenance.json` for a SLAM study (a filter study stages it with its outputs).
+fn write_provenance(dir: &Path) -> Result<()> {
+    let path = dir.join("provenance.json");
+    let tmp = dir.join(format!(".provenance.json.{}.tmp", std::process::id()));
+    fs::write(&tmp, report::Provenance::current().to_json())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Stages scenario.json, metrics.csv, paths.csv, status.csv and the figures (all, or `plots`).
+/// Runs a sweep ([`sim::sweep`]) with a progress bar.
+fn simulate_sweep(sc: &Scenario) -> Result<sim::sweep::SweepResults> {
+    let p = Progress::new(sim::sweep::total_run_steps(sc), sc.name());
+    let res = sim::sweep::run(sc, &p);
+    p.0.finish_and_clear();
+    Ok(res?)
+}
+
+fn stage_scenario(st: &mut io::Staged, sc: &Scenario) -> Result<()> {
+    st.write("scenario.json", edgekf_io::scenario_json(sc)?.as_bytes())
+}
+
+/// Stages scenario.json, metrics.csv, paths.csv, status.csv, a sweep's summary.csv and
+/// sweep_metrics.csv, and the figures (all, or `plots`).
 fn stage_outputs(
     st: &mut io::Staged,
     sc: &Scenario,
     res: &Results,
     plots: Option<&[&str]>,
+    extra: &plot_garkf::Extra<'_>,
 ) -> Result<()> {
-    stage_scenario(st, sc)?;
-    st.write("metrics.csv", io::metrics_csv(res).as_bytes())?;
+    if let Some(sw) = extra.sweep {
+        st.write("summary.csv", io::summary_csv(sw).as_bytes())?;
+        st.write("sweep_metrics.csv", io::sweep_metrics_csv(sw).as_bytes())?;
+    }
+    edgekf_io::stage_tables(st, sc, res)?;
     st.write(
-        "paths.csv",
-        io::paths_csv(res, sc.framework().dim(), sc.framework().agents()).as_bytes(),
+        "provenance.json",
+        report::Provenance::current().to_json().as_bytes(),
     )?;
-    st.write("status.csv", io::status_csv(res).as_bytes())?;
     for p in sc.plots() {
         if plots.is_none_or(|want| want.contains(&p.file())) {
             let path = st.path(&format!("{}.png", p.file()));
-            plot::render(&path, p, sc, res)?;
+            if plot_garkf::handles(p) {
+                plot_garkf::render(&path, p, sc, res, extra)?;
+            } else {
+                plot::render(&path, p, sc, res)?;
+            }
         }
     }
     Ok(())
@@ -587,7 +658,7 @@ fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {
         );
     }
     let mut st = io::Staged::new(out)?;
-    stage_outputs(&mut st, &sc, &res, None)?;
+    stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
     st.commit()?;
     eprintln!("merged {} shard(s) into {}", parts.len(), out.display());
     let over = Overrides {
@@ -602,7 +673,7 @@ fn sim_dir(file: &str) -> &str {
     file.strip_suffix(".toml").unwrap_or(file)
 }
 
-fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<ExitCode> {
+fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Result<ExitCode> {
     if names.is_empty() {
         bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
     }
@@ -622,22 +693,39 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<ExitCode>
     let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
         .into_iter()
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
-    // Check every scenario before running any, so a bad flag fails at once.
+    // Check every scenario before running any, so a bad flag fails at once. Companions (further
+    // studies a figure draws) come before the figures that need them.
+    let embedded = |rel: &str| -> Result<edgekf::scenario::FrameworkSpec> {
+        let text = registry::framework_text(rel).with_context(|| {
+            format!("framework file `{rel}` is not shipped with the reproductions")
+        })?;
+        edgekf::scenario::FrameworkSpec::from_framework_json(text)
+            .map_err(|m| anyhow::anyhow!("{rel}: {m}"))
+    };
     let mut files: Vec<(&str, Scenario)> = Vec::new();
     for e in &entries {
-        if files.iter().any(|(f, _)| *f == e.file) {
-            continue;
+        for (file, text) in e.companions.iter().copied().chain([(e.file, e.text)]) {
+            if files.iter().any(|(f, _)| *f == file) {
+                continue;
+            }
+            let sc = io::load_scenario_with(file, text, &embedded)?;
+            let sc = apply_overrides(sc, over).with_context(|| file.to_string())?;
+            check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
+            files.push((file, sc));
         }
-        let sc = io::load_scenario(e.file, e.text, None)?;
-        let sc = apply_overrides(sc, over).with_context(|| e.file.to_string())?;
-        check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
-        files.push((e.file, sc));
     }
     let start = Instant::now();
     let mut code = ExitCode::SUCCESS;
+    let mut pages: Vec<PathBuf> = Vec::new();
+    let mut done: Vec<(&str, Option<sim::sweep::SweepResults>)> = Vec::new();
     for (file, sc) in &files {
         let t = Instant::now();
-        let res = pool.install(|| simulate(sc, 0..sc.runs()))?;
+        let (res, sweep) = if sc.sweep().is_some() {
+            let sw = pool.install(|| simulate_sweep(sc))?;
+            (sw.base.clone(), Some(sw))
+        } else {
+            (pool.install(|| simulate(sc, 0..sc.runs()))?, None)
+        };
         let sim_time = t.elapsed();
         let dir = out.join(sim_dir(file));
         let mine: Vec<&registry::Entry> = entries
@@ -646,8 +734,24 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<ExitCode>
             .filter(|e| e.file == *file)
             .collect();
         let plots: Vec<&str> = mine.iter().flat_map(|e| e.plots.iter().copied()).collect();
+        let mut extra = plot_garkf::Extra {
+            sweep: sweep.as_ref(),
+            companions: Vec::new(),
+        };
+        for e in &mine {
+            for (cf, _) in e.companions {
+                let csc = files.iter().find(|(f, _)| f == cf).map(|(_, s)| s);
+                let csw = done
+                    .iter()
+                    .find(|(f, _)| f == cf)
+                    .and_then(|(_, w)| w.as_ref());
+                if let (Some(csc), Some(csw)) = (csc, csw) {
+                    extra.companions.push((csc, csw));
+                }
+            }
+        }
         let mut st = io::Staged::new(&dir)?;
-        stage_outputs(&mut st, sc, &res, Some(&plots))?;
+        stage_outputs(&mut st, sc, &res, Some(&plots), &extra)?;
         st.commit()?;
         for e in &mine {
             eprintln!(
@@ -661,19 +765,37 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides) -> Result<ExitCode>
             );
         }
         eprintln!(
-            "  ({file}: {} runs × {} steps simulated in {:.2?})",
+            "  ({file}: {} runs × {} steps{} simulated in {:.2?})",
             sc.runs(),
             sc.steps(),
+            sweep
+                .as_ref()
+                .map(|w| format!(" × {} sweep values", w.points.len()))
+                .unwrap_or_default(),
             sim_time
         );
         if report(sc, &res, over) != ExitCode::SUCCESS {
             code = ExitCode::from(DIVERGED);
         }
+        if html {
+            pages.push(report::write_page(&dir)?);
+        }
+        done.push((file, sweep));
     }
     for e in &slams {
         let dir = out.join(e.name);
         slam::run_text(e.file, e.text, &dir, over.json)?;
+        write_provenance(&dir)?;
         eprintln!("{:<16} {}", e.name, dir.display());
+        if html {
+            pages.push(report::write_page(&dir)?);
+        }
+    }
+    if html {
+        let index = report::write_index(out, &pages)?;
+        for p in pages.iter().chain(std::iter::once(&index)) {
+            eprintln!("wrote {}", p.display());
+        }
     }
     eprintln!(
         "reproduced {} figure(s) in {:.2?}",

@@ -1,435 +1,861 @@
-//! Plot helpers shared by every figure: the bundled font (pure Rust text rendering).
-
-use std::sync::Once;
-
-static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-static INIT: Once = Once::new();
-
-/// Registers the bundled DejaVu Sans as plotters' "sans-serif" family (idempotent).
-pub fn register_fonts() {
-    INIT.call_once(|| {
-        for style in [
-            plotters::style::FontStyle::Normal,
-            plotters::style::FontStyle::Bold,
-            plotters::style::FontStyle::Italic,
-            plotters::style::FontStyle::Oblique,
-        ] {
-            // The font is bundled and valid; registration only fails on malformed bytes.
-            let _ = plotters::style::register_font("sans-serif", style, FONT);
-        }
-    });
-}
+//! The figures of a filter study, drawn with the figure toolkit (`crate::figure`): a metric over
+//! time, agent paths, one agent's inputs.
+//!
+//! Whole-figure conventions:
+//! - a metric is drawn as its mean over the runs with a translucent ±1σ band; a quantity that is
+//!   the same in every run (a shared-gain filter's covariance trace) is drawn as a plain line and
+//!   the note under the figure says it is deterministic — never "mean ± 1σ" for it;
+//! - each estimator keeps its colour (its position in the study) in every figure of the study;
+//! - curves that coincide are drawn with distinct dashes and markers, the legend says so, and a
+//!   panel of their differences is added under the plot;
+//! - `log_x` gives a log-time axis, `inset = [from, to]` a zoomed inset, for transients that a
+//!   linear 0–30 s axis squeezes into its first pixels;
+//! - legends carry maths markup (`P_{fail}`, `û^{j}`) from the plot's `legend` table;
+//! - paths use the agent palette (never the grey of the final links), at the reports kept by
+//!   `paths_per_decade`, exactly the rows of `paths.csv`.
 
 use std::path::Path;
 
-use anyhow::{anyhow, Result};
+use anyhow::{Context, Result};
 use edgekf::scenario::{PlotSpec, Scenario};
-use edgekf::sim::Results;
-use plotters::prelude::*;
+use edgekf::sim::{Outcome, Results};
 
-const PALETTE: [RGBColor; 8] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(120, 120, 120),
-    RGBColor(0, 0, 0),
+use crate::figure::{
+    coincide, palette, Axis, CoincideGroup, Curve, Dash, Figure, HAlign, Inset, Label, LegendMode,
+    Marker, Panel, RenderReport, Shape, Style, VAlign,
+};
+
+/// Curves closer than this many pixels (vertically) look like one line.
+const SAME_PX: f64 = 3.0;
+/// ... when they are that close at this share of the reported times.
+const SAME_SHARE: f64 = 0.9;
+/// Height of a metric figure's plot area, roughly, in pixels (720 px figure).
+const PLOT_PX: f64 = 500.0;
+/// Markers for the members of a group of coinciding curves, in order.
+const GROUP_SHAPES: [Shape; 6] = [
+    Shape::Circle,
+    Shape::Square,
+    Shape::TriangleUp,
+    Shape::Diamond,
+    Shape::TriangleDown,
+    Shape::Cross,
 ];
 
-fn colour(k: usize) -> RGBColor {
-    PALETTE[k % PALETTE.len()]
+/// A group of curves that look like one line, and the share of the times at which they do.
+struct VisualGroup {
+    group: CoincideGroup,
+    share: f64,
 }
 
-/// Axis label (with units) of a metric.
-pub fn metric_label(metric: &str) -> &'static str {
-    match metric {
-        "est_error" => "estimation error ε_k = ‖x_k − x̂_k|k‖ [m]",
-        "est_error_sq" => "squared estimation error ε_k² [m²]",
-        "cov_trace" => "trace of posterior covariance [m²]",
-        "procrustes" => "Procrustes error [m]",
-        _ => "value",
+/// `12 %`, `0.4 %`, `0.03 %`.
+fn pct(v: f64) -> String {
+    let p = 100.0 * v;
+    if p >= 10.0 {
+        format!("{p:.0} %")
+    } else if p >= 1.0 {
+        format!("{p:.1} %")
+    } else {
+        format!("{p:.2} %")
     }
 }
 
-fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow!("plotting failed: {e:?}")
+/// Groups of curves (on one time grid) that a reader cannot tell apart: within `SAME_PX` pixels
+/// of each other at `SAME_SHARE` of their common points, on a plot `plot_px` high. Unlike the
+/// toolkit's strict test (every point within 0.1 %), this also catches curves that part only in
+/// a short transient — e.g. thesis Fig. 6.2's five P_fail curves, 6.6 % apart at 0.08 s and
+/// within 0.2 % elsewhere.
+fn visual_groups(curves: &[Curve], log_y: bool, plot_px: f64) -> Vec<VisualGroup> {
+    let usable = |v: f64| v.is_finite() && (!log_y || v > 0.0);
+    let (lo, hi) = curves
+        .iter()
+        .flat_map(|c| c.y.iter().copied().filter(|&v| usable(v)))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Vec::new();
+    }
+    // SAME_PX pixels as a relative difference (log axis) or a share of the span (linear).
+    let span = (hi - lo).max(f64::MIN_POSITIVE);
+    let tol = if log_y {
+        let decades = (hi / lo).log10().max(0.3);
+        10f64.powf(SAME_PX / plot_px * decades) - 1.0
+    } else {
+        SAME_PX / plot_px
+    };
+    let dev = |a: f64, b: f64| {
+        if log_y {
+            (a - b).abs() / a.abs().max(b.abs())
+        } else {
+            (a - b).abs() / span
+        }
+    };
+    // (share of points within tol, max deviation) between curves i and j.
+    let pair = |i: usize, j: usize| -> Option<(f64, f64)> {
+        let (a, b) = (&curves[i], &curves[j]);
+        let n = a.y.len().min(b.y.len());
+        if n < 2 || a.x[..n] != b.x[..n] {
+            return None;
+        }
+        let (mut within, mut count, mut worst) = (0usize, 0usize, 0.0f64);
+        for k in 0..n {
+            let (p, q) = (a.y[k], b.y[k]);
+            if usable(p) && usable(q) {
+                let d = dev(p, q);
+                count += 1;
+                within += usize::from(d <= tol);
+                worst = worst.max(d);
+            }
+        }
+        (count >= 2).then(|| (within as f64 / count as f64, worst))
+    };
+    let n = curves.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for i in 0..n {
+        for j in 0..i {
+            if pair(i, j).is_some_and(|(share, _)| share >= SAME_SHARE) {
+                let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
+                parent[ri] = rj;
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for r in 0..n {
+        let members: Vec<usize> = (0..n).filter(|&i| root(&mut parent, i) == r).collect();
+        if members.len() < 2 {
+            continue;
+        }
+        let (mut share, mut worst) = (1.0f64, 0.0f64);
+        for (x, &i) in members.iter().enumerate() {
+            for &j in &members[..x] {
+                if let Some((s, w)) = pair(i, j) {
+                    share = share.min(s);
+                    worst = worst.max(w);
+                }
+            }
+        }
+        out.push(VisualGroup {
+            group: CoincideGroup {
+                labels: members.iter().map(|&i| curves[i].label.clone()).collect(),
+                members,
+                tolerance: tol,
+                max_deviation: worst,
+            },
+            share,
+        });
+    }
+    out
+}
+
+/// Axis label (with markup) and unit of a metric.
+pub fn metric_axis(metric: &str) -> (String, &'static str) {
+    let (l, u) = match metric {
+        "est_error" => ("estimation error ε_{k} = ‖x_{k} − x̂_{k|k}‖", "m"),
+        "est_error_sq" => ("squared estimation error ε_{k}²", "m²"),
+        "cov_trace" => ("trace of the posterior covariance tr Σ_{k|k}", "m²"),
+        "procrustes" => ("Procrustes error", "m"),
+        "tracking_error" => ("tracking error δ_{k}", "m²"),
+        "edge_cov_trace" => ("position trace of one edge's covariance", "m²"),
+        "psi" => ("convergence indicator ψ", ""),
+        "theta_error" => ("consensus error ‖Θ̂_{i} − Θ^{*}‖²_{F}", ""),
+        "theta_ral_error" => ("RAL error ‖Θ̂_{i} − Θ^{*}‖²_{F}", ""),
+        "pcrb_trace" => ("trace of the PCRB", "m²"),
+        other => (other, ""),
+    };
+    (l.to_string(), u)
+}
+
+/// The unit of a metric (`""` for a dimensionless one), for tables.
+pub fn metric_unit(metric: &str) -> &'static str {
+    metric_axis(metric).1
+}
+
+/// Writes the abnormal findings of a render (non-finite values, clamped ranges) to stderr; the
+/// figure carries the same as a note.
+fn warn(path: &Path, rep: &RenderReport) {
+    for w in rep.problems() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
 }
 
 /// Renders one figure request into `path` (a PNG; the caller stages it under a temporary name).
-/// Estimators without data for the figure (e.g. diverged before its first point) are left out.
+/// Estimators without data for the figure (e.g. diverged before its first point) are left out,
+/// and the figure says so.
 pub fn render(path: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Result<()> {
-    register_fonts();
+    let fig = figure(spec, sc, res);
+    let rep = fig
+        .render(path)
+        .with_context(|| format!("cannot draw {}", path.display()))?;
+    warn(path, &rep);
+    Ok(())
+}
+
+/// The figure of one plot request, not yet drawn.
+pub fn figure(spec: &PlotSpec, sc: &Scenario, res: &Results) -> Figure {
     let labels: Vec<String> = spec
         .estimators()
         .map(<[String]>::to_vec)
         .unwrap_or_else(|| res.labels().iter().map(|s| s.to_string()).collect());
     match spec {
-        PlotSpec::Metric { metric, log_y, .. } => {
-            metric_plot(path, spec, metric, *log_y, res, &labels)
+        PlotSpec::Metric {
+            metric,
+            log_y,
+            log_x,
+            inset,
+            ..
+        } => metric_figure(spec, metric, *log_y, *log_x, *inset, res, &labels),
+        PlotSpec::Inputs { agent, .. } => inputs_figure(spec, *agent, sc, res, &labels),
+        PlotSpec::Paths { .. } => paths_figure(spec, sc, res, &labels),
+        // Sweeps and GA-RKF figures are drawn by `crate::plot_garkf` (the caller routes them there).
+        PlotSpec::Panels { .. } | PlotSpec::Summary { .. } | PlotSpec::Indicator { .. } => {
+            Figure::new(title_of(spec, spec.file())).with_note(format!(
+                "{} is drawn by the GA-RKF figures module",
+                spec.file()
+            ))
         }
-        PlotSpec::Inputs { agent, .. } => inputs_plot(path, spec, *agent, sc, res, &labels),
-        PlotSpec::Paths { .. } => paths_plot(path, spec, sc, res, &labels),
     }
 }
 
-fn metric_plot(
-    path: &Path,
+/// The colour of estimator `label`: its position in the study, so it is the same in every figure.
+fn colour_of(res: &Results, label: &str) -> crate::figure::Rgb {
+    palette::series(
+        res.estimators
+            .iter()
+            .position(|e| e.label == label)
+            .unwrap_or(0),
+    )
+}
+
+/// A linear time axis from 0 to the last report (so that 0 is labelled).
+fn time_axis(res: &Results) -> Axis {
+    let end = res.steps.last().copied().unwrap_or(1) as f64 * res.dt;
+    Axis::linear("time t", "s").with_range(0.0, end)
+}
+
+/// Times of the reported steps [s].
+fn times(res: &Results) -> Vec<f64> {
+    res.steps.iter().map(|&k| k as f64 * res.dt).collect()
+}
+
+/// A short time for notes and titles (`0.25 s`, `30 s`).
+fn secs(t: f64) -> String {
+    let s = format!("{t:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    format!("{s} s")
+}
+
+/// The title of a plot: its own, or a default.
+fn title_of(spec: &PlotSpec, default: &str) -> String {
+    if spec.title().is_empty() {
+        default.to_string()
+    } else {
+        spec.title().to_string()
+    }
+}
+
+/// Notes on estimators that stopped early.
+fn divergence_notes(res: &Results, labels: &[String]) -> Vec<String> {
+    labels
+        .iter()
+        .filter_map(|l| res.estimator(l))
+        .filter_map(|e| match &e.outcome {
+            Outcome::Diverged { step, .. } => Some(format!(
+                "{} diverged at t = {} (step {step}); its curve ends there (see status.csv).",
+                e.label,
+                secs(*step as f64 * res.dt)
+            )),
+            Outcome::Completed => None,
+        })
+        .collect()
+}
+
+fn metric_figure(
     spec: &PlotSpec,
     metric: &str,
     log_y: bool,
+    log_x: bool,
+    inset: Option<[f64; 2]>,
     res: &Results,
     labels: &[String],
-) -> Result<()> {
-    let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
-    let tmax = *t.last().unwrap_or(&1.0);
-    let mut series = Vec::new();
+) -> Figure {
+    let t = times(res);
+    let runs = res.runs.len();
+    let (ylabel, yunit) = metric_axis(metric);
+    let x_axis = if log_x {
+        Axis::log("time t", "s").tight()
+    } else {
+        time_axis(res)
+    };
+    let y_axis = if log_y {
+        Axis::log(ylabel, yunit)
+    } else {
+        Axis::linear(ylabel, yunit)
+    };
+    let mut panel = Panel::new(x_axis, y_axis);
+    let (mut banded, mut fixed, mut missing) = (Vec::new(), Vec::new(), Vec::new());
     for l in labels {
-        if let Some(s) = res.series(l, metric) {
-            series.push((l.clone(), s));
+        let Some(s) = res.series(l, metric).filter(|s| !s.mean.is_empty()) else {
+            missing.push(l.clone());
+            continue;
+        };
+        let n = s.mean.len();
+        let text = spec.legend_text(l).to_string();
+        let style = Style::line().colour(colour_of(res, l));
+        // Exactly 0 at every report: every run holds the same value (stats::mean_std).
+        let deterministic = runs > 1 && s.std.iter().all(|v| *v == 0.0);
+        let mut c = Curve::new(text, t[..n].to_vec(), s.mean.clone()).with_style(style);
+        if runs > 1 && !deterministic {
+            let sd = |v: &f64| if v.is_finite() { v.max(0.0) } else { 0.0 };
+            let lower = s.mean.iter().zip(&s.std).map(|(m, v)| m - sd(v)).collect();
+            let upper = s.mean.iter().zip(&s.std).map(|(m, v)| m + sd(v)).collect();
+            c = c.with_band(lower, upper);
+            banded.push(l.clone());
+        } else if runs > 1 {
+            fixed.push(l.clone());
+        }
+        panel.curves.push(c);
+    }
+    if let Some([a, b]) = inset {
+        panel = panel.with_inset(Inset::new(a, b, format!("{}–{}", secs(a), secs(b))));
+    }
+    let mut notes = Vec::new();
+    let name = |v: &[String]| {
+        v.iter()
+            .map(|l| spec.legend_text(l).to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match (runs, banded.is_empty(), fixed.is_empty()) {
+        (1, _, _) => notes.push("One run (no spread to show).".to_string()),
+        (_, false, true) => notes.push(format!("Mean over {runs} Monte Carlo runs, ±1σ shaded.")),
+        (_, true, false) => notes.push(format!(
+            "Deterministic: identical in all {runs} runs (the filters' gains do not depend on \
+             the data), so there is no spread to shade."
+        )),
+        (_, false, false) => notes.push(format!(
+            "Mean over {runs} Monte Carlo runs, ±1σ shaded; {} identical in every run \
+             (deterministic, no band).",
+            name(&fixed)
+        )),
+        (_, true, true) => {}
+    }
+    if log_x {
+        notes.push(format!(
+            "Log time axis from the first step (t = {}), so the transient is visible.",
+            secs(t.first().copied().unwrap_or(res.dt))
+        ));
+    }
+    if !missing.is_empty() {
+        notes.push(format!("No data for {}.", name(&missing)));
+    }
+    notes.extend(divergence_notes(res, labels));
+    panel.coincide_tolerance = None;
+    let groups = visual_groups(&panel.curves, log_y, PLOT_PX);
+    for g in &groups {
+        for (m, &i) in g.group.members.iter().enumerate() {
+            let st = &mut panel.curves[i].style;
+            st.dash = Some(Dash::ALL[m % Dash::ALL.len()]);
+            st.marker = Some(
+                Marker::new(GROUP_SHAPES[m % GROUP_SHAPES.len()], 7.0)
+                    .spaced(90.0, 90.0 * (m as f64 + 0.5) / g.group.members.len() as f64),
+            );
         }
     }
-    // y range over the bands (positive part on a log axis).
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (_, s) in &series {
-        for (m, sd) in s.mean.iter().zip(&s.std) {
-            let sd = if sd.is_finite() { *sd } else { 0.0 };
-            let (a, b) = (m - sd, m + sd);
-            hi = hi.max(b);
-            if log_y {
-                if *m > 0.0 {
-                    lo = lo.min(if a > 0.0 { a } else { *m });
-                }
-            } else {
-                lo = lo.min(a);
-            }
-        }
-    }
-    if !lo.is_finite() || !hi.is_finite() {
-        lo = 1e-6;
-        hi = 1.0;
-    }
-    let root = BitMapBackend::new(path, (1100, 720)).into_drawing_area();
-    root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title().is_empty() {
-        metric.to_string()
+    let title = title_of(spec, metric);
+    let mut fig = if groups.is_empty() {
+        Figure::single(title, panel)
     } else {
-        spec.title().to_string()
-    };
-    let n = res.runs.len();
-    let caption = format!(
-        "{title}  (mean ± 1σ over {n} run{})",
-        if n == 1 { "" } else { "s" }
-    );
-    let mut builder = ChartBuilder::on(&root);
-    builder
-        .caption(caption, ("sans-serif", 24))
-        .margin(16)
-        .x_label_area_size(56)
-        .y_label_area_size(96);
-    // A log axis is drawn as a linear axis of log10 values, labelled with the values: plotters'
-    // own log scale labels only the top decade of a narrow range.
-    let (y0, y1, map): (f64, f64, Box<dyn Fn(f64) -> f64>) = if log_y {
-        let (l, h) = ((lo * 0.8).log10(), (hi * 1.25).log10());
-        (l, h, Box::new(move |v: f64| v.max(lo * 0.8).log10()))
-    } else {
-        let pad = 0.05 * (hi - lo).max(1e-12);
-        (lo - pad, hi + pad, Box::new(|v| v))
-    };
-    let mut chart = builder
-        .build_cartesian_2d(0.0..tmax, y0..y1)
-        .map_err(draw_err)?;
-    let log = log_y;
-    let fmt = move |v: &f64| {
-        if log {
-            format!("{:.1e}", 10f64.powf(*v))
-        } else {
-            format!("{v:.3}")
+        for g in &groups {
+            let of = if log_y { "" } else { " of the axis span" };
+            notes.push(format!(
+                "{} coincide to within {}{of} ({} px) at {:.0} % of the reported times (at most \
+                 {}{of} apart): dashes and markers tell them apart; the lower panel shows their \
+                 differences.",
+                coincide::group_name(&g.group.labels),
+                pct(g.group.tolerance),
+                SAME_PX,
+                100.0 * g.share,
+                pct(g.group.max_deviation),
+            ));
         }
+        let mut f = Figure::new(title).with_size(1100, 720 + 330 * groups.len() as u32);
+        let diffs: Vec<Panel> = groups
+            .iter()
+            .map(|g| {
+                let mut d = panel.difference_panel(&g.group).with_title(format!(
+                    "differences within the coinciding curves ({})",
+                    coincide::group_name(&g.group.labels)
+                ));
+                d.inset = None;
+                d
+            })
+            .collect();
+        f.panels.push(panel);
+        f.panels.extend(diffs);
+        f
     };
-    chart
-        .configure_mesh()
-        .x_desc("time [s]")
-        .y_desc(if log {
-            format!("{} (log scale)", metric_label(metric))
-        } else {
-            metric_label(metric).to_string()
-        })
-        .y_labels(12)
-        .y_label_formatter(&fmt)
-        .label_style(("sans-serif", 16))
-        .axis_desc_style(("sans-serif", 18))
-        .draw()
-        .map_err(draw_err)?;
-    let series: Vec<(String, &edgekf::sim::Series)> =
-        series.iter().map(|(l, s)| (l.clone(), s)).collect();
-    draw_bands(&mut chart, &t, &series, &map)?;
-    root.present().map_err(draw_err)?;
-    Ok(())
+    fig.notes = notes;
+    fig
 }
 
-/// The legend of every line figure: upper right, on a translucent white box.
-fn draw_legend<'a, DB: DrawingBackend + 'a>(
-    chart: &mut ChartContext<
-        'a,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
-    font_size: u32,
-) -> Result<()> {
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", font_size))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(draw_err)?;
-    Ok(())
-}
-
-/// Mean curves with ±1σ bands (values mapped to the axis by `map`) and the legend.
-fn draw_bands<'a, DB: DrawingBackend + 'a>(
-    chart: &mut ChartContext<
-        'a,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
-    t: &[f64],
-    series: &[(String, &edgekf::sim::Series)],
-    map: &dyn Fn(f64) -> f64,
-) -> Result<()> {
-    let sd = |v: &f64| if v.is_finite() { v.max(0.0) } else { 0.0 };
-    for (k, (l, s)) in series.iter().enumerate() {
-        let c = colour(k);
-        let upper = t
-            .iter()
-            .zip(s.mean.iter().zip(&s.std))
-            .map(|(&x, (m, v))| (x, map(m + sd(v))));
-        let lower = t
-            .iter()
-            .zip(s.mean.iter().zip(&s.std))
-            .rev()
-            .map(|(&x, (m, v))| (x, map(m - sd(v))));
-        let band: Vec<(f64, f64)> = upper.chain(lower).collect();
-        chart
-            .draw_series(std::iter::once(Polygon::new(band, c.mix(0.18).filled())))
-            .map_err(draw_err)?;
-        chart
-            .draw_series(LineSeries::new(
-                t.iter().zip(&s.mean).map(|(&x, &m)| (x, map(m))),
-                c.stroke_width(2),
-            ))
-            .map_err(draw_err)?
-            .label(l.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
-    }
-    draw_legend(chart, 16)
-}
-
-fn inputs_plot(
-    path: &Path,
+fn inputs_figure(
     spec: &PlotSpec,
     agent: usize,
     sc: &Scenario,
     res: &Results,
     labels: &[String],
-) -> Result<()> {
+) -> Figure {
     let (n, d) = (sc.framework().agents(), sc.framework().dim());
-    let t: Vec<f64> = res.steps.iter().map(|&k| k as f64 * res.dt).collect();
-    let tmax = *t.last().unwrap_or(&1.0);
+    let t = times(res);
+    let tmax = t.last().copied().unwrap_or(res.dt);
+    let axes = ["x", "y", "z"];
+    let many = labels.len() > 1;
     let mut curves = Vec::new();
     for l in labels {
-        let e = res
-            .estimator(l)
-            .ok_or_else(|| anyhow!("no estimator `{l}`"))?;
-        let reports = e.inputs.len() / (n * d);
-        for c in 0..d {
+        let Some(e) = res.estimator(l) else { continue };
+        let reports = (e.inputs.len() / (n * d).max(1)).min(t.len());
+        for (c, axis) in axes.iter().enumerate().take(d) {
             let v: Vec<f64> = (0..reports)
                 .map(|k| e.inputs[k * n * d + agent * d + c])
                 .collect();
-            curves.push((format!("{l}: u_{}", ["x", "y", "z"][c]), v));
+            let name = if many {
+                format!("{}: u_{{{axis}}}", spec.legend_text(l))
+            } else {
+                format!("u_{{{axis}}}")
+            };
+            let colour = palette::series(curves.len());
+            curves.push(
+                Curve::new(name, t[..reports].to_vec(), v)
+                    .with_style(Style::line().colour(colour).width(1.0)),
+            );
         }
     }
-    let root = BitMapBackend::new(path, (1100, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title().is_empty() {
-        "control input".to_string()
-    } else {
-        spec.title().to_string()
-    };
-    let root = root
-        .titled(
-            &format!("{title}  (agent {agent}, run {})", sc.paths_run()),
-            ("sans-serif", 24),
-        )
-        .map_err(draw_err)?;
-    let (top, bottom) = root.split_vertically(430);
-    // Whole run, then the steady state (last five sixths) on its own scale: the first second's
-    // inputs are two orders of magnitude larger than the steady-state process.
-    let t_steady = tmax / 6.0;
-    for (area, from, caption) in [
-        (&top, 0.0, "whole run"),
-        (&bottom, t_steady, "steady state"),
-    ] {
-        let first = t.iter().position(|&x| x >= from).unwrap_or(0);
-        let (lo, hi) = curves
+    // The transient, then the steady state, each on its own scale: the first second's inputs are
+    // two orders of magnitude larger than the steady-state process (on one axis for the whole
+    // run the transient is a spike in the first pixels and the steady state a flat line).
+    let from = tmax / 6.0;
+    let part = |a: f64, b: f64| -> Vec<Curve> {
+        curves
             .iter()
-            .flat_map(|(_, v)| v[first..].iter())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            });
-        let pad = 0.05 * (hi - lo).max(1e-12);
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                format!("{caption} ({:.0}–{:.0} s)", t[first], tmax),
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(48)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t[first]..tmax, (lo - pad)..(hi + pad))
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("time [s]")
-            .y_desc("control input u [m/s]")
-            .label_style(("sans-serif", 15))
-            .axis_desc_style(("sans-serif", 17))
-            .draw()
-            .map_err(draw_err)?;
-        for (k, (l, v)) in curves.iter().enumerate() {
-            let c = colour(k);
-            chart
-                .draw_series(LineSeries::new(
-                    t[first..].iter().copied().zip(v[first..].iter().copied()),
-                    c.stroke_width(1),
-                ))
-                .map_err(draw_err)?
-                .label(l.as_str())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
-                });
-        }
-        draw_legend(&mut chart, 15)?;
+            .map(|c| {
+                let (i, j) = (
+                    c.x.partition_point(|&x| x < a),
+                    c.x.partition_point(|&x| x <= b),
+                );
+                Curve {
+                    x: c.x[i..j].to_vec(),
+                    y: c.y[i..j].to_vec(),
+                    ..c.clone()
+                }
+            })
+            .collect()
+    };
+    let axis = || Axis::linear(format!("control input u^{{{agent}}}_{{k}}"), "m/s");
+    let mut whole = Panel::new(Axis::linear("time t", "s").with_range(0.0, from), axis())
+        .with_title(format!("transient (0–{})", secs(from)));
+    whole.curves = part(0.0, from);
+    let mut late = Panel::new(Axis::linear("time t", "s").with_range(from, tmax), axis())
+        .with_title(format!("steady state ({}–{})", secs(from), secs(tmax)));
+    late.curves = part(from, tmax);
+    for p in [&mut whole, &mut late] {
+        // Two coordinates of one noisy signal are not "coinciding curves".
+        p.coincide_tolerance = None;
     }
-    root.present().map_err(draw_err)?;
-    Ok(())
+    let mut fig = Figure::new(title_of(spec, "control input")).with_size(1100, 900);
+    fig.panels = vec![whole, late];
+    fig.notes = vec![format!(
+        "Agent {agent}, run {} (one realisation), every reported step ({} values).",
+        sc.paths_run(),
+        t.len()
+    )];
+    fig.notes.extend(divergence_notes(res, labels));
+    fig
 }
 
-fn paths_plot(
-    path: &Path,
-    spec: &PlotSpec,
-    sc: &Scenario,
-    res: &Results,
-    labels: &[String],
-) -> Result<()> {
+fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]) -> Figure {
     let fw = sc.framework();
     let (n, d) = (fw.agents(), fw.dim());
-    let panels = labels.len().max(1);
-    let cols = panels.min(2);
-    let rows = panels.div_ceil(cols);
-    let root =
-        BitMapBackend::new(path, (640 * cols as u32, 600 * rows as u32 + 80)).into_drawing_area();
-    root.fill(&WHITE).map_err(draw_err)?;
-    let title = if spec.title().is_empty() {
-        "agent paths".to_string()
-    } else {
-        spec.title().to_string()
-    };
-    let root = root.titled(&title, ("sans-serif", 22)).map_err(draw_err)?;
-    let (root, foot) = root.split_vertically(600 * rows as u32 + 80 - 30 - 26);
-    foot.draw(&Text::new(
-        format!(
-            "run {}, 0–{:.0} s; ○ start, ▲ end (red: leaders), grey: final links",
-            sc.paths_run(),
-            res.steps.last().copied().unwrap_or(0) as f64 * res.dt
-        ),
-        (20, 4),
-        ("sans-serif", 16),
-    ))
-    .map_err(draw_err)?;
-    let areas = root.split_evenly((rows, cols));
-    for (area, label) in areas.iter().zip(labels) {
-        let e = res
-            .estimator(label)
-            .ok_or_else(|| anyhow!("no estimator `{label}`"))?;
-        let p = &e.paths;
-        let nr = p.len() / (n * d);
-        if nr == 0 {
+    let keep = sc.path_reports();
+    let mut panels = Vec::new();
+    for label in labels {
+        let Some(e) = res.estimator(label) else {
+            continue;
+        };
+        let reports = e.paths.len() / (n * d).max(1);
+        let idx: Vec<usize> = keep.iter().copied().filter(|&k| k < reports).collect();
+        let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m"))
+            .with_title(spec.legend_text(label).to_string());
+        p.equal_aspect = true;
+        p.coincide_tolerance = None;
+        if idx.is_empty() {
+            panels.push(p);
             continue;
         }
-        let at = |k: usize, i: usize, c: usize| p[k * n * d + i * d + c];
-        let (mut x0, mut x1, mut y0, mut y1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for k in 0..nr {
-            for i in 0..n {
-                x0 = x0.min(at(k, i, 0));
-                x1 = x1.max(at(k, i, 0));
-                let y = if d > 1 { at(k, i, 1) } else { 0.0 };
-                y0 = y0.min(y);
-                y1 = y1.max(y);
+        let at = |k: usize, i: usize, c: usize| {
+            if c < d {
+                e.paths[k * n * d + i * d + c]
+            } else {
+                0.0
             }
-        }
-        // Equal aspect ratio.
-        let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-        let half = 0.55 * (x1 - x0).max(y1 - y0).max(1e-9);
-        let mut chart = ChartBuilder::on(area)
-            .caption(label.as_str(), ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(44)
-            .y_label_area_size(56)
-            .build_cartesian_2d((cx - half)..(cx + half), (cy - half)..(cy + half))
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("x [m]")
-            .y_desc("y [m]")
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 16))
-            .draw()
-            .map_err(draw_err)?;
-        let y = |k: usize, i: usize| if d > 1 { at(k, i, 1) } else { 0.0 };
-        let last = nr - 1;
+        };
+        let (first, last) = (idx[0], idx[idx.len() - 1]);
         for &(i, j) in fw.graph().links() {
-            chart
-                .draw_series(LineSeries::new(
-                    vec![(at(last, i, 0), y(last, i)), (at(last, j, 0), y(last, j))],
-                    BLACK.mix(0.35),
-                ))
-                .map_err(draw_err)?;
+            p.curves.push(
+                Curve::new(
+                    "final links",
+                    vec![at(last, i, 0), at(last, j, 0)],
+                    vec![at(last, i, 1), at(last, j, 1)],
+                )
+                .with_style(Style::line().colour(palette::LINK).width(1.2)),
+            );
         }
         for i in 0..n {
-            let c = colour(i);
-            chart
-                .draw_series(LineSeries::new(
-                    (0..nr).map(|k| (at(k, i, 0), y(k, i))),
-                    c.stroke_width(1),
-                ))
-                .map_err(draw_err)?;
-            chart
-                .draw_series(std::iter::once(Circle::new(
-                    (at(0, i, 0), y(0, i)),
-                    4,
-                    c.stroke_width(2),
-                )))
-                .map_err(draw_err)?;
-            let leader = fw.leaders().contains(&i);
-            let style = if leader { RED.filled() } else { c.filled() };
-            chart
-                .draw_series(std::iter::once(TriangleMarker::new(
-                    (at(last, i, 0), y(last, i)),
-                    7,
-                    style,
-                )))
-                .map_err(draw_err)?;
+            let (colour, dash) = palette::agent(i);
+            p.curves.push(
+                Curve::new(
+                    "",
+                    idx.iter().map(|&k| at(k, i, 0)).collect(),
+                    idx.iter().map(|&k| at(k, i, 1)).collect(),
+                )
+                .with_style(Style::line().colour(colour).dash(dash).width(1.4)),
+            );
         }
+        let (sx, sy): (Vec<f64>, Vec<f64>) =
+            (0..n).map(|i| (at(first, i, 0), at(first, i, 1))).unzip();
+        p.curves.push(Curve::new("start", sx, sy).with_style(
+            Style::markers(Marker::new(Shape::Circle, 8.0).hollow()).colour(palette::MARKER),
+        ));
+        let leaders = fw.leaders();
+        let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n)
+            .filter(|i| !leaders.contains(i))
+            .map(|i| (at(last, i, 0), at(last, i, 1)))
+            .unzip();
+        p.curves.push(Curve::new("end", fx, fy).with_style(
+            Style::markers(Marker::new(Shape::TriangleUp, 10.0)).colour(palette::MARKER),
+        ));
+        if !leaders.is_empty() {
+            let (lx, ly): (Vec<f64>, Vec<f64>) = leaders
+                .iter()
+                .map(|&i| (at(last, i, 0), at(last, i, 1)))
+                .unzip();
+            p.curves
+                .push(Curve::new("end (leaders)", lx, ly).with_style(
+                    Style::markers(Marker::new(Shape::TriangleUp, 11.0)).colour(palette::LEADER),
+                ));
+        }
+        for i in 0..n {
+            p.labels.push(Label {
+                offset: (7.0, -6.0),
+                h: HAlign::Left,
+                v: VAlign::Bottom,
+                size: 13.0,
+                ..Label::new(at(last, i, 0), at(last, i, 1), format!("{i}"))
+            });
+        }
+        p.legend = LegendMode::Auto;
+        panels.push(p);
     }
-    root.present().map_err(draw_err)?;
-    Ok(())
+    let cols = panels.len().clamp(1, 2);
+    let rows = panels.len().div_ceil(cols).max(1);
+    let mut fig = Figure::new(title_of(spec, "agent paths"))
+        .with_size(620 * cols as u32 + 40, 560 * rows as u32 + 110);
+    fig.columns = cols;
+    fig.panels = panels;
+    let tmax = res.steps.last().copied().unwrap_or(0) as f64 * res.dt;
+    let shown = keep.len();
+    let every = if shown == res.steps.len() {
+        "every reported step".to_string()
+    } else {
+        format!("{shown} log-spaced reports of {}", res.steps.len())
+    };
+    fig.notes = vec![format!(
+        "Run {}, 0–{}, positions at {every} (as in paths.csv); agent colours by index{}; final \
+         links grey; ○ start, ▲ end (red: leaders).",
+        sc.paths_run(),
+        secs(tmax),
+        if n > 9 { ", agents 9+ dashed" } else { "" }
+    )];
+    fig.notes.extend(divergence_notes(res, labels));
+    fig
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use edgekf::reproductions::ENTRIES;
+    use std::time::{Duration, Instant};
+
+    /// A shipped scenario at test size (the transient and the shape of every figure kept).
+    fn small(file: &str) -> (Scenario, Results) {
+        let e = ENTRIES.iter().find(|e| e.file == file).unwrap();
+        let sc = e.scenario().unwrap();
+        let runs = sc.runs().min(6);
+        let sc = sc.with_size(Some(runs), Some(3000), None).unwrap();
+        let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
+        (sc, res)
+    }
+
+    fn draw(spec: &PlotSpec, sc: &Scenario, res: &Results) -> (Figure, RenderReport) {
+        let fig = figure(spec, sc, res);
+        let (_, rep) = fig.draw();
+        (fig, rep)
+    }
+
+    #[test]
+    fn every_shipped_plot_renders_quickly_without_warnings() {
+        let mut files: Vec<&str> = ENTRIES
+            .iter()
+            .filter(|e| !e.is_slam())
+            .map(|e| e.file)
+            .collect();
+        files.dedup();
+        let mut count = 0;
+        for f in files {
+            let (sc, res) = small(f);
+            for spec in sc.plots() {
+                let t = Instant::now();
+                let (fig, rep) = draw(spec, &sc, &res);
+                let took = t.elapsed();
+                assert!(
+                    took < Duration::from_secs(10),
+                    "{f}/{}: {took:?}",
+                    spec.file()
+                );
+                assert!(
+                    rep.warnings().is_empty(),
+                    "{f}/{}: {:?}",
+                    spec.file(),
+                    rep.warnings()
+                );
+                for p in &rep.panels {
+                    assert!(!p.curves.is_empty(), "{f}/{}: an empty panel", spec.file());
+                    // Every axis text inside the image.
+                    for (s, r) in &p.texts {
+                        assert!(
+                            r.x0 >= 0.0
+                                && r.y0 >= 0.0
+                                && r.x1 <= f64::from(rep.size.0)
+                                && r.y1 <= f64::from(rep.size.1),
+                            "{f}/{}: `{s}` at {r:?} leaves the image",
+                            spec.file()
+                        );
+                    }
+                }
+                assert!(!fig.title.is_empty());
+                count += 1;
+            }
+        }
+        assert!(count >= 17, "{count} plots");
+    }
+
+    #[test]
+    fn deterministic_quantities_are_not_called_mean_plus_minus_sigma() {
+        let (sc, res) = small("eusipco.toml");
+        let spec = sc
+            .plots()
+            .iter()
+            .find(|p| p.file() == "eusipco-fig4a")
+            .unwrap();
+        let (fig, rep) = draw(spec, &sc, &res);
+        let all: String = std::iter::once(fig.title.clone())
+            .chain(fig.notes.clone())
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert!(!all.contains('±'), "{all}");
+        assert!(all.contains("Deterministic"), "{all}");
+        // No band drawn: every curve is a bare line.
+        assert!(fig.panels[0].curves.iter().all(|c| c.band.is_none()));
+        // The transient is on the log-time axis: the first point lies at the first step.
+        assert_eq!(rep.panels[0].x_scale, crate::figure::Scale::Log);
+        // The legend covers no line (computed placement).
+        let l = rep.panels[0].legend.as_ref().expect("a legend");
+        assert!(
+            l.covered < crate::figure::legend::LINE_WEIGHT as u64 * 4,
+            "legend covers {} at {:?}",
+            l.covered,
+            l.placement
+        );
+        // ε is random: mean ± 1σ, with bands.
+        let spec = sc
+            .plots()
+            .iter()
+            .find(|p| p.file() == "eusipco-fig4b")
+            .unwrap();
+        let (fig, _) = draw(spec, &sc, &res);
+        assert!(
+            fig.notes.iter().any(|n| n.contains("±1σ")),
+            "{:?}",
+            fig.notes
+        );
+        assert!(fig.panels[0].curves.iter().all(|c| c.band.is_some()));
+    }
+
+    #[test]
+    fn thesis_fig_5_1_shows_none_and_fig_6_2_names_its_coinciding_curves() {
+        let (sc, res) = small("eusipco.toml");
+        let spec = sc
+            .plots()
+            .iter()
+            .find(|p| p.file() == "thesis-fig5.1")
+            .unwrap();
+        let (fig, _) = draw(spec, &sc, &res);
+        let labels: Vec<&str> = fig.panels[0]
+            .curves
+            .iter()
+            .map(|c| c.label.as_str())
+            .collect();
+        assert!(labels.iter().any(|l| l.starts_with("none")), "{labels:?}");
+
+        let (sc, res) = small("thesis-fig6.2.toml");
+        let spec = &sc.plots()[0];
+        let (fig, _) = draw(spec, &sc, &res);
+        let groups = visual_groups(&fig.panels[0].curves, true, PLOT_PX);
+        assert_eq!(groups.len(), 1);
+        let g = &groups[0].group;
+        assert_eq!(g.members.len(), 5, "{:?}", g.labels);
+        assert!(
+            g.labels.iter().all(|l| l.contains("P_{fail}")),
+            "{:?}",
+            g.labels
+        );
+        // Distinct dashes and markers for the members, a difference panel, and a note.
+        let mut dashes: Vec<String> = g
+            .members
+            .iter()
+            .map(|&i| format!("{:?}", fig.panels[0].curves[i].style.dash))
+            .collect();
+        dashes.dedup();
+        assert_eq!(dashes.len(), 5);
+        assert!(g
+            .members
+            .iter()
+            .all(|&i| fig.panels[0].curves[i].style.marker.is_some()));
+        assert_eq!(fig.panels.len(), 2);
+        assert_eq!(fig.panels[1].curves.len(), 4);
+        assert!(
+            fig.notes.iter().any(|n| n.contains("coincide")),
+            "{:?}",
+            fig.notes
+        );
+        // The baseline reads as û = 0, not "u = 0".
+        assert!(fig.panels[0]
+            .curves
+            .iter()
+            .any(|c| c.label.contains("û^{j} = 0")));
+    }
+
+    #[test]
+    fn an_inset_is_drawn_where_asked() {
+        let (sc, res) = small("thesis-fig4.8.toml");
+        let PlotSpec::Metric {
+            file,
+            title,
+            metric,
+            log_y,
+            log_x,
+            estimators,
+            legend,
+            ..
+        } = sc.plots()[0].clone()
+        else {
+            panic!("a metric plot")
+        };
+        let spec = PlotSpec::Metric {
+            file,
+            title,
+            metric,
+            log_y,
+            log_x,
+            inset: Some([0.0, 0.5]),
+            estimators,
+            legend,
+        };
+        let (_, rep) = draw(&spec, &sc, &res);
+        assert!(rep.panels[0].inset.is_some());
+        // Linear time axes start at 0 and label it.
+        let first = rep.panels[0]
+            .x_ticks
+            .iter()
+            .find(|t| t.label.is_some())
+            .unwrap();
+        assert!(first.value.abs() < 1e-12, "{:?}", rep.panels[0].x_ticks);
+        assert!(
+            matches!(first.label.as_deref(), Some("0" | "0.0")),
+            "{first:?}"
+        );
+    }
+
+    #[test]
+    fn paths_use_agent_colours_never_the_links_grey() {
+        let (sc, res) = small("thesis-fig3.3.toml");
+        let spec = sc
+            .plots()
+            .iter()
+            .find(|p| p.file() == "thesis-fig3.4")
+            .unwrap();
+        let (fig, _) = draw(spec, &sc, &res);
+        let p = &fig.panels[0];
+        for c in p.curves.iter().filter(|c| c.label.is_empty()) {
+            let col = c.style.colour.unwrap();
+            assert!(palette::distance(col, palette::LINK) > 70.0, "{col:?}");
+            assert!(palette::chroma(col) >= 60);
+        }
+        // The path points are the reports kept for paths.csv.
+        let agent = p.curves.iter().find(|c| c.label.is_empty()).unwrap();
+        assert_eq!(agent.x.len(), sc.path_reports().len());
+    }
+}
+
+#[cfg(test)]
+mod group_tests {
+    use super::*;
+
+    fn c(label: &str, y: Vec<f64>) -> Curve {
+        let x = (1..=y.len()).map(|k| k as f64).collect();
+        Curve::new(label, x, y)
+    }
+
+    #[test]
+    fn curves_apart_only_in_a_short_transient_still_look_like_one() {
+        let base: Vec<f64> = (0..1000)
+            .map(|k| 0.05 + (-(k as f64) / 20.0).exp())
+            .collect();
+        // 8 % apart over the first 30 points, 0.1 % elsewhere.
+        let near: Vec<f64> = base
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * if k < 30 { 1.08 } else { 1.001 })
+            .collect();
+        // 20 % apart everywhere.
+        let far: Vec<f64> = base.iter().map(|v| v * 1.2).collect();
+        let g = visual_groups(
+            &[c("a", base.clone()), c("b", near), c("c", far)],
+            true,
+            500.0,
+        );
+        assert_eq!(g.len(), 1);
+        assert_eq!(g[0].group.members, vec![0, 1]);
+        assert!(g[0].share > 0.95 && g[0].share < 0.99, "{}", g[0].share);
+        assert!((g[0].group.max_deviation - 0.08 / 1.08).abs() < 1e-9);
+        // On a linear axis the tolerance is a share of the span.
+        let g = visual_groups(
+            &[c("a", vec![0.0, 1.0]), c("b", vec![0.002, 1.002])],
+            false,
+            500.0,
+        );
+        assert_eq!(g.len(), 1);
+        let g = visual_groups(
+            &[c("a", vec![0.0, 1.0]), c("b", vec![0.05, 1.05])],
+            false,
+            500.0,
+        );
+        assert!(g.is_empty());
+    }
 }
