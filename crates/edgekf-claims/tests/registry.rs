@@ -1,0 +1,146 @@
+//! The registry is well formed, and the verdicts written in the README and in `docs/claims.md`
+//! are the registry's: the README's citations must match `docs/claims.md` (instant), the claims
+//! settled at reduced size are re-measured here (a few seconds), and the full check runs in the
+//! ignored test (`cargo test --release -p edgekf-claims -- --ignored`, the same work as
+//! `edgekf claims`).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use edgekf_claims::readme::{citations, is_claim_id};
+use edgekf_claims::{evaluate, registry, Claim, Options, Paper, Silent, Size, Verdict};
+
+const README: &str = include_str!("../../../README.md");
+const DOCS: &str = include_str!("../../../docs/claims.md");
+const SECTION: &str = "## What the papers claim that we could not confirm";
+
+/// Every id of `docs/claims.md` with its verdict (each exactly once).
+fn docs() -> BTreeMap<String, Verdict> {
+    let mut out = BTreeMap::new();
+    for c in citations(DOCS).expect("docs/claims.md cites every id with its verdict") {
+        assert!(
+            out.insert(c.id.clone(), c.verdict).is_none(),
+            "docs/claims.md lists `{}` twice",
+            c.id
+        );
+    }
+    out
+}
+
+#[test]
+fn registry_is_well_formed() {
+    let claims = registry::claims();
+    let mut ids = BTreeSet::new();
+    for c in &claims {
+        assert!(ids.insert(c.id), "duplicate id `{}`", c.id);
+        assert!(
+            is_claim_id(c.id),
+            "`{}` is not of the form <source>-<digit>…",
+            c.id
+        );
+        assert!(
+            edgekf::reproductions::find(c.reproduction).is_some(),
+            "`{}`: unknown reproduction `{}`",
+            c.id,
+            c.reproduction
+        );
+        for text in [c.statement, c.paper_value, c.location] {
+            for w in ["agrees", "differs", "not checkable"] {
+                assert!(!text.contains(w), "`{}`: its text contains `{w}`", c.id);
+            }
+        }
+    }
+    let papers = claims.iter().filter(|c| c.paper != Paper::Project).count();
+    assert!(papers >= 50, "{papers} paper claims");
+    for p in [Paper::Eusipco, Paper::Thesis, Paper::Guo] {
+        assert!(claims.iter().any(|c| c.paper == p), "{p:?}");
+    }
+    // Every study exists and its scenario checks at both sizes.
+    for s in edgekf_claims::needed_studies(&claims).unwrap() {
+        if s.kind != edgekf_claims::study::Kind::Slam {
+            s.scenario(Size::Full).unwrap();
+            s.scenario(Size::Reduced).unwrap();
+        }
+    }
+}
+
+#[test]
+fn docs_list_every_claim_and_the_readme_cites_their_verdicts() {
+    let docs = docs();
+    let ids: BTreeSet<String> = registry::claims()
+        .iter()
+        .map(|c| c.id.to_string())
+        .collect();
+    let listed: BTreeSet<String> = docs.keys().cloned().collect();
+    assert_eq!(
+        listed, ids,
+        "docs/claims.md must list exactly the registry's claims"
+    );
+    let cited = citations(README).expect("the README cites claims with their verdicts");
+    assert!(cited.len() >= 20, "{} citations", cited.len());
+    for c in &cited {
+        let d = docs
+            .get(&c.id)
+            .unwrap_or_else(|| panic!("README line {}: unknown claim `{}`", c.line, c.id));
+        assert_eq!(
+            c.verdict, *d,
+            "README line {}: `{}` is cited as {} but the registry says {}",
+            c.line, c.id, c.verdict, d
+        );
+    }
+    // The README's "could not confirm" section lists exactly the papers' claims that do not
+    // agree.
+    let start = README.find(SECTION).expect("the README has the section");
+    let rest = &README[start + SECTION.len()..];
+    let section = &rest[..rest.find("\n## ").unwrap_or(rest.len())];
+    let in_section: BTreeSet<String> = citations(section)
+        .unwrap()
+        .into_iter()
+        .map(|c| c.id)
+        .collect();
+    let expected: BTreeSet<String> = registry::claims()
+        .iter()
+        .filter(|c| c.paper != Paper::Project && docs[c.id] != Verdict::Agrees)
+        .map(|c| c.id.to_string())
+        .collect();
+    assert_eq!(
+        in_section, expected,
+        "the section must list exactly the claims that differ or are not checkable"
+    );
+}
+
+fn check(claims: Vec<Claim>, size: Size) {
+    let docs = docs();
+    let out = evaluate(&claims, Options { size, seeds: None }, &Silent).unwrap();
+    let mut wrong = Vec::new();
+    for o in &out {
+        println!(
+            "{:<50} {:>12} ± {:<10} {}",
+            o.claim.id,
+            o.estimate.map_or(f64::NAN, |e| e.value),
+            o.estimate.map_or(f64::NAN, |e| e.se),
+            o.verdict
+        );
+        if docs[o.claim.id] != o.verdict {
+            wrong.push(format!(
+                "`{}`: measured {} ({:?}), docs/claims.md says {}",
+                o.claim.id, o.verdict, o.estimate, docs[o.claim.id]
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// The claims already settled at reduced size (one seed, a few runs per study).
+#[test]
+fn settled_claims_at_reduced_size() {
+    let small: Vec<Claim> = registry::claims().into_iter().filter(|c| c.small).collect();
+    assert!(small.len() >= 30, "{} small claims", small.len());
+    check(small, Size::Reduced);
+}
+
+/// Every claim at full size (as `edgekf claims`): ≈ 1–3 min on 2 cores in release mode.
+#[test]
+#[ignore = "full size: run with `cargo test --release -p edgekf-claims -- --ignored`"]
+fn every_claim_at_full_size() {
+    check(registry::claims(), Size::Full);
+}

@@ -1,0 +1,88 @@
+//! `edgekf claims`: the JSON array has exactly the keys the report page reads, `--out` writes it
+//! for the whole run and per simulation directory, and a bad name fails cleanly. The claims of
+//! `slam-fig3` are deterministic and take a fraction of a second.
+
+use std::fs;
+use std::process::Command;
+
+fn edgekf(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_edgekf"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+#[test]
+fn json_has_exactly_the_keys_and_out_writes_each_simulation() {
+    let dir = std::env::temp_dir().join(format!("edgekf-cli-claims-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    let o = edgekf(&[
+        "claims",
+        "slam-fig3",
+        "--json",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let printed: serde_json::Value = serde_json::from_slice(&o.stdout).expect("a JSON array");
+    let rows = printed.as_array().expect("an array");
+    assert!(rows.len() >= 10, "{} claims of slam-fig3", rows.len());
+    let keys = [
+        "claim",
+        "id",
+        "paper",
+        "paper_value",
+        "se",
+        "value",
+        "verdict",
+        "where",
+    ];
+    for r in rows {
+        let obj = r.as_object().expect("objects");
+        let mut k: Vec<&str> = obj.keys().map(String::as_str).collect();
+        k.sort_unstable();
+        assert_eq!(k, keys, "{r}");
+        let verdict = obj["verdict"].as_str().unwrap();
+        assert!(
+            ["agrees", "differs", "not checkable"].contains(&verdict),
+            "{verdict}"
+        );
+        assert!(obj["value"].is_number() || obj["value"].is_null());
+        assert!(obj["se"].is_number() || obj["se"].is_null());
+        for s in ["id", "paper", "where", "claim", "paper_value"] {
+            assert!(obj[s].is_string(), "{s}");
+        }
+    }
+    // The SLAM observer's numbers are exact: standard error 0.
+    let omega = rows
+        .iter()
+        .find(|r| r["id"] == "guo-6-omega-positive")
+        .expect("the Ω claim");
+    assert_eq!(omega["se"], 0.0);
+    assert_eq!(omega["verdict"], "agrees");
+    for f in ["claims.json", "slam-fig3/claims.json"] {
+        let written: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(dir.join(f)).unwrap()).unwrap();
+        assert_eq!(written, printed, "{f}");
+    }
+    let md = fs::read_to_string(dir.join("claims.md")).unwrap();
+    assert!(md.contains("`guo-6-omega-positive`"));
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn table_by_default_and_unknown_names_fail() {
+    let o = edgekf(&["claims", "slam-disturbed"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.starts_with("| id | paper, where | claim | paper's value | ours ± SE | verdict |"));
+    assert!(text.contains("`guo-5-l2-stable`"), "{text}");
+    let o = edgekf(&["claims", "no-such-figure"]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("unknown reproduction `no-such-figure`"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.stdout.is_empty());
+}
