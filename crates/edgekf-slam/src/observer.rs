@@ -53,6 +53,13 @@ pub fn design_robot(model: &Model, i: usize, q: f64, r_i: f64) -> Result<RobotOb
     let h = &model.h[i];
     let decomposition = kalman_decomposition(&model.a, h);
     let z = &decomposition.z;
+    if z.ncols() == 0 {
+        // Nothing observable at the model's scale (e.g. a gain so large that the rank test
+        // sees every measurement direction as zero): there is no CARE to solve.
+        return Err(CareError::NoConvergence {
+            what: "Kalman decomposition (no observable direction at this scale)",
+        });
+    }
     let a11 = z.transpose() * &model.a * z;
     let h_bar = h * z;
     let rows = h.nrows();

@@ -181,6 +181,34 @@ pub enum ScenarioError {
         /// The key.
         key: String,
     },
+    /// A number too large to simulate in f64 (its square, or a product of two, overflows).
+    #[error("key `{key}` = {value:e} is too large to simulate in f64 (|value| ≤ {MAX_MAGNITUDE:e}); rescale the units")]
+    TooLarge {
+        /// The key.
+        key: String,
+        /// The value.
+        value: f64,
+    },
+    /// The time grid has more steps or stored samples than a run can hold.
+    #[error("key `{key}`: {what}")]
+    TooLong {
+        /// The key.
+        key: &'static str,
+        /// What is too large, with the numbers.
+        what: String,
+    },
+    /// RK4 is unstable at this step for these dynamics.
+    #[error("key `time.step`: h·ρ = {h_rho:.3e} ≥ {RK4_BOUND} ({what} ρ = {rho:.3e} /s): RK4 is unstable at this step and the run would overflow; lower `time.step` below {bound:.3e} s")]
+    Unstable {
+        /// `h ρ`.
+        h_rho: f64,
+        /// `ρ`.
+        rho: f64,
+        /// Which dynamics.
+        what: &'static str,
+        /// The largest stable step.
+        bound: f64,
+    },
     /// A number that must be positive is not.
     #[error("key `{key}` must be > 0, found {value}")]
     NotPositive {
@@ -323,10 +351,34 @@ fn positive(key: &str, v: f64) -> Result<f64, ScenarioError> {
     }
 }
 
+/// The largest magnitude of a position, estimate, velocity or amplitude: errors are Euclidean
+/// norms over the state, so squares of the values must stay far from overflow.
+pub const MAX_MAGNITUDE: f64 = 1e75;
+
+/// RK4's stability bound on the negative real axis, `h ρ < 2.78`.
+pub const RK4_BOUND: f64 = 2.78;
+
+/// The largest number of RK4 steps of a run (about an hour at a microsecond a step).
+pub const MAX_STEPS: f64 = 1e9;
+
+/// The largest number of stored values (samples × robots × state size): 2 GB of f64.
+pub const MAX_VALUES: f64 = 2.5e8;
+
+fn representable(key: &str, v: f64) -> Result<f64, ScenarioError> {
+    finite(key, v)?;
+    if v.abs() > MAX_MAGNITUDE {
+        return Err(ScenarioError::TooLarge {
+            key: key.to_string(),
+            value: v,
+        });
+    }
+    Ok(v)
+}
+
 fn points(key: &str, pts: &[[f64; 2]]) -> Result<(), ScenarioError> {
     for (k, p) in pts.iter().enumerate() {
         for (c, v) in p.iter().enumerate() {
-            finite(&format!("{key}[{k}][{c}]"), *v)?;
+            representable(&format!("{key}[{k}][{c}]"), *v)?;
         }
     }
     Ok(())
@@ -337,6 +389,14 @@ fn whole_steps(key: &'static str, value: f64, step: f64) -> Result<usize, Scenar
     let k = (value / step).round();
     if k < 1.0 || ((value / step) - k).abs() > 1e-9 * k.max(1.0) {
         return Err(ScenarioError::NotMultipleOfStep { key, value, step });
+    }
+    if k > MAX_STEPS {
+        return Err(ScenarioError::TooLong {
+            key,
+            what: format!(
+                "{value} s is {k:.3e} steps of `time.step` = {step}; a run takes at most {MAX_STEPS:e}"
+            ),
+        });
     }
     Ok(k as usize)
 }
@@ -484,8 +544,8 @@ impl ScenarioSpec {
             }
         };
         for c in 0..2 {
-            finite(&format!("centroid.start[{c}]"), self.centroid.start[c])?;
-            finite(
+            representable(&format!("centroid.start[{c}]"), self.centroid.start[c])?;
+            representable(
                 &format!("centroid.velocity[{c}]"),
                 self.centroid.velocity[c],
             )?;
@@ -500,6 +560,34 @@ impl ScenarioSpec {
                 key: "time.horizon",
                 value: self.time.horizon,
                 step: self.time.output_every,
+            });
+        }
+        let stored = (steps / output_stride + 1) as f64 * ((n + 1) * dim) as f64;
+        if stored > MAX_VALUES {
+            return Err(ScenarioError::TooLong {
+                key: "time.output_every",
+                what: format!(
+                    "{} samples of {} values each ({stored:.3e} in all) are more than a run keeps ({MAX_VALUES:e}); raise `time.output_every`",
+                    steps / output_stride + 1,
+                    (n + 1) * dim
+                ),
+            });
+        }
+        for c in 0..2 {
+            representable(
+                "time.horizon × centroid.velocity",
+                self.centroid.velocity[c] * self.time.horizon,
+            )?;
+        }
+        // The formation dynamics `A = −(k₁/n) 11ᵀ − k₂ L_f` (⊗ I₂) have eigenvalues −k₁ and
+        // −k₂ λ(L_f): RK4 must be stable on them (and the observer design is meaningless past it).
+        let rho_a = k1.max(k2 * l_f.symmetric_eigenvalues().amax());
+        if step * rho_a >= RK4_BOUND {
+            return Err(ScenarioError::Unstable {
+                h_rho: step * rho_a,
+                rho: rho_a,
+                what: "the formation dynamics (gains.k1, gains.k2)",
+                bound: RK4_BOUND / rho_a,
             });
         }
         if let Some(d) = &self.disturbance {
@@ -517,7 +605,7 @@ impl ScenarioSpec {
                 ("disturbance.nu_phase_per_row", d.nu_phase_per_row),
                 ("disturbance.nu_phase_per_robot", d.nu_phase_per_robot),
             ] {
-                finite(key, v)?;
+                representable(key, v)?;
             }
             positive("disturbance.end − disturbance.start", d.end - d.start)?;
         }
@@ -555,7 +643,7 @@ impl ScenarioSpec {
                         });
                     }
                     for (k, x) in e.iter().enumerate() {
-                        finite(&format!("initial_estimates[{i}][{k}]"), *x)?;
+                        representable(&format!("initial_estimates[{i}][{k}]"), *x)?;
                     }
                     out.push(DVector::from_column_slice(e));
                 }
@@ -608,6 +696,15 @@ impl ScenarioSpec {
         if report.lambda_min.is_nan() || report.lambda_min <= 1e-9 {
             return Err(ScenarioError::JointlyUnobservable {
                 lambda_min: report.lambda_min,
+            });
+        }
+        let rho = scenario.closed_loop_spectral_radius();
+        if rho.is_nan() || step * rho >= RK4_BOUND {
+            return Err(ScenarioError::Unstable {
+                h_rho: step * rho,
+                rho,
+                what: "the closed loop with the observers (gains.gamma, observer.q, observer.r)",
+                bound: RK4_BOUND / rho,
             });
         }
         Ok(scenario)
