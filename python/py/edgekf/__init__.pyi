@@ -1,0 +1,108 @@
+"""Type stubs of the Python package `edgekf` (the docstrings are in `__init__.py`)."""
+
+import os
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+ScenarioLike = Union[str, os.PathLike[str], Dict[str, Any]]
+F64 = npt.NDArray[np.float64]
+
+class Result:
+    """The outcome of a Monte Carlo study."""
+
+    @property
+    def scenario(self) -> Dict[str, Any]: ...
+    @property
+    def estimators(self) -> List[str]: ...
+    @property
+    def metrics(self) -> List[str]: ...
+    @property
+    def runs(self) -> int: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def steps(self) -> npt.NDArray[np.int64]: ...
+    def metrics_of(self, estimator: str) -> List[str]: ...
+    def metric(self, estimator: str, name: str) -> Tuple[F64, F64, F64]:
+        """(time, mean, std) across runs; e.g. `est_error` is ε_k of thesis eq. (4.34)."""
+    def paths(self, estimator: str) -> F64:
+        """Positions of the recorded run (reported steps × agents × D)."""
+    def inputs(self, estimator: str) -> F64: ...
+    def status(self, estimator: str) -> Dict[str, Any]: ...
+    def metrics_csv(self) -> str: ...
+    def to_pandas(self) -> Any: ...
+    def save(self, dir: Union[str, os.PathLike[str]]) -> None:
+        """Writes the CLI's tables (metrics.csv byte-identical to `edgekf run`)."""
+
+def run(
+    scenario: ScenarioLike,
+    *,
+    runs: Optional[int] = ...,
+    steps: Optional[int] = ...,
+    seed: Optional[int] = ...,
+    threads: Optional[int] = ...,
+    every: Optional[int] = ...,
+    progress: bool = ...,
+) -> Result:
+    """Runs a scenario as `edgekf run` does; ValueError with the CLI's message on bad input."""
+
+def resolve(scenario: ScenarioLike) -> Dict[str, Any]: ...
+def list_reproductions() -> List[Dict[str, Any]]: ...
+def reproduce(
+    name: str,
+    *,
+    runs: Optional[int] = ...,
+    steps: Optional[int] = ...,
+    seed: Optional[int] = ...,
+    every: Optional[int] = ...,
+    threads: Optional[int] = ...,
+    progress: bool = ...,
+) -> Result: ...
+def design(
+    config: npt.ArrayLike,
+    edges: npt.ArrayLike,
+    *,
+    method: str = ...,
+    leaders: Union[None, Sequence[int], str] = ...,
+    leader_mode: str = ...,
+    name: str = ...,
+) -> Dict[str, Any]:
+    """Stress weights by the thesis SDP (3.5), Yang et al. 2019, or the sparse design."""
+
+def check(
+    config: npt.ArrayLike,
+    edges: npt.ArrayLike,
+    weights: npt.ArrayLike,
+    *,
+    leaders: Optional[Sequence[int]] = ...,
+) -> Dict[str, Any]: ...
+
+class EdgeFilter:
+    """RKF of EUSIPCO eq. (5) on one edge (x0: (D,)) or a batch (x0: (B, D))."""
+
+    kind: str
+    batched: bool
+    dim: int
+    batch: int
+    def __init__(
+        self,
+        kind: str = ...,
+        *,
+        R: npt.ArrayLike,
+        Q: npt.ArrayLike,
+        x0: npt.ArrayLike,
+        P0: npt.ArrayLike,
+    ) -> None: ...
+    def predict(self, du: npt.ArrayLike) -> Tuple[F64, F64]:
+        """(5c), (5d)."""
+    def update(self, y: npt.ArrayLike) -> Tuple[F64, F64]:
+        """(5e)–(5g), Joseph form."""
+    def step(self, du: npt.ArrayLike, y: npt.ArrayLike) -> Tuple[F64, F64]: ...
+    @property
+    def x(self) -> F64: ...
+    @property
+    def P(self) -> F64: ...
