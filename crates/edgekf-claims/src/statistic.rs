@@ -179,6 +179,29 @@ pub enum Statistic {
         /// Metric.
         metric: &'static str,
     },
+    /// Li & Rajan's Theorem 1 on the agents' means: the largest, over the reported steps in
+    /// `window`, of `E[ψ_k] / (c̄·E[δ_k] + b̄)` (means over runs of the `psi` and
+    /// `tracking_error` metrics; `c̄`, `b̄` the agents' means of (20a–b) on the nominal graph,
+    /// [`Scenario::theorem1_means`]). Below 1 where the bound holds; jackknife over runs.
+    Theorem1 {
+        /// Estimator (a `garkf`).
+        label: &'static str,
+        /// Window (start after the first ψ: ψ is undefined before it).
+        window: Window,
+    },
+    /// The share of runs that stay stable (Li & Rajan Fig. 13; the rule of a sweep's `stable`,
+    /// [`edgekf::sim::sweep::stable_runs`]): δ finite at every report and its mean over `last`
+    /// at most `factor` times its mean over `reference`. Mean of the per-run 0/1 values.
+    StableShare {
+        /// Estimator.
+        label: &'static str,
+        /// The reference window (before the failures).
+        reference: Window,
+        /// The final window.
+        last: Window,
+        /// The allowed growth.
+        factor: f64,
+    },
     /// The largest of several statistics of the same study (conservative for a `Below` rule).
     Max(Vec<Statistic>),
     /// Structural numbers of a checked filter scenario (no simulation).
@@ -202,6 +225,8 @@ pub enum ModelStat {
     QaMinEigenvalue,
     /// Largest off-diagonal entry of `Q` over its diagonal entry σ_w² (EUSIPCO: in [0, 1]).
     QOffDiagonalMax,
+    /// Mean degree of the graph, `2|E|/N`.
+    MeanDegree,
 }
 
 /// Numbers of the SLAM observer and its run.
@@ -247,6 +272,7 @@ pub enum SlamStat {
 pub type Measured = Result<(Estimate, Option<String>), String>;
 
 struct Filt<'a> {
+    scenario: &'a Scenario,
     results: &'a [Results],
 }
 
@@ -376,7 +402,12 @@ impl Statistic {
                 let (e, _) = best.ok_or("an empty maximum")?;
                 Ok((e, Some(format!("each: {}", notes.join(", ")))))
             }
-            (s, Data::Filters { results, .. }) => s.eval_filters(&Filt { results }),
+            (
+                s,
+                Data::Filters {
+                    scenario, results, ..
+                },
+            ) => s.eval_filters(&Filt { scenario, results }),
             _ => Err("the statistic does not apply to this study's kind".into()),
         }
     }
@@ -671,6 +702,57 @@ impl Statistic {
                 }
                 plain(Estimate::exact((hi - lo) / (sum / n)))
             }
+            Statistic::Theorem1 { label, window } => {
+                let def = f
+                    .scenario
+                    .estimators()
+                    .iter()
+                    .find(|d| d.label() == label)
+                    .ok_or_else(|| format!("no estimator `{label}` in the study"))?;
+                let (c, b) = f
+                    .scenario
+                    .theorem1_means(def.samples())
+                    .ok_or("no agent has a feasible RAL on the nominal graph")?;
+                let psi = f.matrix(label, "psi", window)?;
+                let delta = f.matrix(label, "tracking_error", window)?;
+                let nk = psi[0].len();
+                // The worst step; steps where ψ is undefined in some run are left out.
+                let e = stats::jackknife(psi.len(), |u| {
+                    (0..nk)
+                        .map(|k| mean_of(&psi, u, k) / (c * mean_of(&delta, u, k) + b))
+                        .filter(|x| x.is_finite())
+                        .fold(f64::NEG_INFINITY, f64::max)
+                });
+                Ok((
+                    e,
+                    Some(format!(
+                        "c̄ = {}, b̄ = {} (means over the agents)",
+                        crate::rule::num(c),
+                        crate::rule::num(b)
+                    )),
+                ))
+            }
+            Statistic::StableShare {
+                label,
+                reference,
+                last,
+                factor,
+            } => {
+                let rule = edgekf::scenario::StableSpec {
+                    reference: [reference.0, reference.1],
+                    final_window: [last.0, last.1],
+                    factor,
+                };
+                let mut v = Vec::new();
+                for res in f.results {
+                    v.extend(
+                        edgekf::sim::sweep::stable_runs(res, label, &rule).ok_or_else(|| {
+                            format!("no `tracking_error` of estimator `{label}` in the study")
+                        })?,
+                    );
+                }
+                plain(stats::mean(&v))
+            }
             Statistic::Max(_) | Statistic::Model(_) | Statistic::Slam(_) => {
                 Err("the statistic does not apply to a filter study".into())
             }
@@ -804,6 +886,19 @@ impl Statistic {
                     .collect::<Vec<_>>()
                     .join("; ")
             ),
+            Statistic::Theorem1 { label, window } => format!(
+                "largest E[ψ]/(c̄·E[δ] + b̄) of {label} {} (Theorem 1 holds below 1)",
+                w(window)
+            ),
+            Statistic::StableShare {
+                label,
+                reference,
+                last,
+                factor,
+            } => format!(
+                "share of runs of {label} whose δ stays finite and ends (mean over {}–{} s) at most {factor}× its mean over {}–{} s",
+                last.0, last.1, reference.0, reference.1
+            ),
             Statistic::Model(m) => m.describe().into(),
             Statistic::Slam(s) => s.describe().into(),
         }
@@ -821,6 +916,7 @@ impl ModelStat {
             ModelStat::StepBound => "Δt·c·λ_max(L_ff)",
             ModelStat::QaMinEigenvalue => "smallest eigenvalue of Q / σ_w²",
             ModelStat::QOffDiagonalMax => "largest off-diagonal entry of Q over σ_w²",
+            ModelStat::MeanDegree => "mean degree 2|E|/N of the graph",
         }
     }
 }
@@ -897,6 +993,13 @@ fn model(m: ModelStat, sc: &Scenario) -> Measured {
             let q = &sc.model().q;
             let ev = q.clone().symmetric_eigenvalues();
             Ok((Estimate::exact(ev.min() / q[(0, 0)]), None))
+        }
+        ModelStat::MeanDegree => {
+            let links = fw.graph().links().len();
+            Ok((
+                Estimate::exact(2.0 * links as f64 / fw.agents() as f64),
+                Some(format!("{links} links, {} agents", fw.agents())),
+            ))
         }
         ModelStat::QOffDiagonalMax => {
             let q = &sc.model().q;

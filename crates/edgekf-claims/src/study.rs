@@ -40,6 +40,12 @@ pub struct Edit {
     pub keep: Option<&'static [&'static str]>,
     /// Extra estimators, as JSON entries (`{"kind": "rkf", "label": "rkf"}`).
     pub add: &'static [&'static str],
+    /// Run the scenario of the reproduction's companion `k` (e.g. the dense graph of
+    /// `garkf-fig13`) instead of its own.
+    pub companion: Option<usize>,
+    /// Run value `k` of the scenario's `[sweep]` (the other edits apply first); without it a
+    /// scenario with a sweep runs as written, without the sweep.
+    pub point: Option<usize>,
 }
 
 /// A simulation the claims are measured on.
@@ -120,8 +126,17 @@ impl Study {
             study: self.id.to_string(),
             message: m,
         };
-        let mut spec: ScenarioSpec = toml::from_str(e.text).map_err(|x| bad(x.to_string()))?;
         let ed = &self.edit;
+        let text = match ed.companion {
+            Some(k) => {
+                e.companions
+                    .get(k)
+                    .ok_or_else(|| bad(format!("{} has no companion {k}", e.name)))?
+                    .1
+            }
+            None => e.text,
+        };
+        let mut spec: ScenarioSpec = toml::from_str(text).map_err(|x| bad(x.to_string()))?;
         spec.plots.clear();
         if let Some(g) = ed.gain {
             spec.control.follower_gain = g;
@@ -161,7 +176,22 @@ impl Study {
         if size == Size::Reduced {
             spec.sim.runs = spec.sim.runs.min(self.small_runs);
         }
-        Scenario::from_spec(&spec, None).map_err(|x| bad(x.to_string()))
+        let fw = reproductions::framework_of(&spec).map_err(bad)?;
+        let sc = Scenario::from_spec(&spec, fw.as_ref()).map_err(|x| bad(x.to_string()))?;
+        match ed.point {
+            Some(k) => {
+                let mut points = sc.sweep_points().map_err(|x| bad(x.to_string()))?;
+                if k >= points.len() {
+                    return Err(bad(format!(
+                        "the sweep has {} values, not {}",
+                        points.len(),
+                        k + 1
+                    )));
+                }
+                Ok(points.swap_remove(k).scenario)
+            }
+            None => Ok(sc.without_sweep()),
+        }
     }
 
     /// The seeds run at `size` (`seeds` overrides the study's own number at full size).
@@ -326,6 +356,163 @@ pub fn studies() -> Vec<Study> {
             about: "the EUSIPCO noise model, checked (no simulation)",
             kind: Kind::Model,
             ..full("eusipco-model", "eusipco-fig4a", 1)
+        },
+        Study {
+            about: "λ = 1 (the sweep's first value), 10 runs, 60 s",
+            edit: Edit {
+                point: Some(0),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig8", "garkf-fig8", 1)
+        },
+        Study {
+            about: "λ = 0.2 (the sweep's second value), 10 runs, 60 s",
+            edit: Edit {
+                point: Some(1),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig8-low", "garkf-fig8", 1)
+        },
+        Study {
+            about: "the shipped scenario at 40 runs",
+            edit: Edit {
+                runs: Some(40),
+                ..Edit::default()
+            },
+            ..full("garkf-fig9", "garkf-fig9", 1)
+        },
+        Study {
+            about: "edge 5→0 lost for good (sweep value 0), 10 runs, 60 s",
+            edit: Edit {
+                runs: Some(10),
+                point: Some(0),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig10-lost", "garkf-fig10", 1)
+        },
+        Study {
+            about: "λ = 1 (sweep value 1), 10 runs, 60 s",
+            edit: Edit {
+                runs: Some(10),
+                point: Some(1),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig10", "garkf-fig10", 1)
+        },
+        Study {
+            about: "λ = 0.2 (sweep value 2), 10 runs, 60 s",
+            edit: Edit {
+                runs: Some(10),
+                point: Some(2),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig10-low", "garkf-fig10", 1)
+        },
+        Study {
+            about: "λ = 0.4 (the shipped scenario without its sweep), 10 runs, 60 s",
+            small_runs: 2,
+            ..full("garkf-fig11", "garkf-fig11", 1)
+        },
+        Study {
+            about: "λ = 0.2 (sweep value 1), 10 runs, 30 s",
+            edit: Edit {
+                steps: Some(3000),
+                point: Some(1),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig11-low", "garkf-fig11", 1)
+        },
+        Study {
+            about: "λ = 0.8 (sweep value 4), 10 runs, 60 s",
+            edit: Edit {
+                point: Some(4),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig11-high", "garkf-fig11", 1)
+        },
+        Study {
+            about: "λ = 1 (sweep value 5), 10 runs, 60 s",
+            edit: Edit {
+                point: Some(5),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig11-full", "garkf-fig11", 1)
+        },
+        Study {
+            about: "agent 6 departs at t₀ = 10 s (the shipped scenario without its sweep), 20 runs, 30 s",
+            small_runs: 2,
+            ..full("garkf-fig12", "garkf-fig12", 1)
+        },
+        Study {
+            about: "agent 6 departs at t₀ = 10 s, 20 runs, 90 s (30 s past the maneuver's end)",
+            edit: Edit {
+                steps: Some(9000),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig12-long", "garkf-fig12", 1)
+        },
+        Study {
+            about: "agent 6 departs at t₀ = 0 (sweep value 0), 20 runs, 30 s",
+            edit: Edit {
+                point: Some(0),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig12-early", "garkf-fig12", 1)
+        },
+        Study {
+            about: "sparse graph, half the agents depart at 8 s (sweep value 4), 100 runs, 15 s",
+            edit: Edit {
+                runs: Some(100),
+                point: Some(4),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig13-sparse", "garkf-fig13", 1)
+        },
+        Study {
+            about: "sparse graph, 6 % of the agents depart at 8 s (sweep value 1), 20 runs, 15 s",
+            edit: Edit {
+                runs: Some(20),
+                point: Some(1),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig13-sparse-few", "garkf-fig13", 1)
+        },
+        Study {
+            about: "dense graph, half the agents depart at 8 s (sweep value 4), 10 runs, 15 s",
+            edit: Edit {
+                runs: Some(10),
+                companion: Some(0),
+                point: Some(4),
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig13-dense", "garkf-fig13", 1)
+        },
+        Study {
+            about: "the sparse 50-agent graph, checked (no simulation)",
+            kind: Kind::Model,
+            ..full("garkf-fig13-sparse-model", "garkf-fig13", 1)
+        },
+        Study {
+            about: "the dense 50-agent graph, checked (no simulation)",
+            kind: Kind::Model,
+            edit: Edit {
+                companion: Some(0),
+                ..Edit::default()
+            },
+            ..full("garkf-fig13-dense-model", "garkf-fig13", 1)
         },
         Study {
             kind: Kind::Slam,

@@ -51,7 +51,7 @@ fn registry_is_well_formed() {
     }
     let papers = claims.iter().filter(|c| c.paper != Paper::Project).count();
     assert!(papers >= 50, "{papers} paper claims");
-    for p in [Paper::Eusipco, Paper::Thesis, Paper::Guo] {
+    for p in [Paper::Eusipco, Paper::Thesis, Paper::Guo, Paper::LiRajan] {
         assert!(claims.iter().any(|c| c.paper == p), "{p:?}");
     }
     // Every study exists and its scenario checks at both sizes.

@@ -12,8 +12,6 @@
 use std::path::Path;
 
 use anyhow::{bail, Result};
-use edgekf::by_dim;
-use edgekf::estimate::ral::{theorem1_coefficients, LocalGeometry, RalOptions, Vector};
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::sweep::SweepResults;
 use edgekf::sim::Results;
@@ -411,39 +409,6 @@ fn summary(
     Ok(Figure::single(title, panel).with_note(note))
 }
 
-/// Theorem 1's `(c̄, b̄)`: `c_i`, `b_i` (20a–b) of every agent on the nominal graph with all its
-/// neighbours observed, averaged over the agents; `tr R` of the estimator's measurement.
-pub fn theorem1_means(sc: &Scenario, samples: usize) -> Option<(f64, f64)> {
-    let fw = sc.framework();
-    let g = fw.graph();
-    let n = fw.agents();
-    let trace_r = sc.model().mean_cov(samples).first()?.trace();
-    by_dim!(fw.dim(), D => {
-        let cfg: Vec<Vector<D>> = (0..n)
-            .map(|i| Vector::<D>::from_fn(|a, _| fw.point(i)[a]))
-            .collect();
-        let opts = RalOptions::default();
-        let geo: Vec<Option<LocalGeometry<D>>> = (0..n)
-            .map(|i| {
-                let nb: Vec<usize> = g.neighbours(i).collect();
-                LocalGeometry::new(&cfg, i, &nb, &opts).ok()
-            })
-            .collect();
-        let (mut cs, mut bs, mut k) = (0.0, 0.0, 0usize);
-        for i in 0..n {
-            let Some(own) = &geo[i] else { continue };
-            let nbs: Vec<&LocalGeometry<D>> =
-                g.neighbours(i).filter_map(|j| geo[j].as_ref()).collect();
-            if let Some((c, b)) = theorem1_coefficients(n, own, &nbs, trace_r) {
-                cs += c;
-                bs += b;
-                k += 1;
-            }
-        }
-        (k > 0).then(|| (cs / k as f64, bs / k as f64))
-    })
-}
-
 fn indicator(
     sc: &Scenario,
     res: &Results,
@@ -456,7 +421,8 @@ fn indicator(
         .iter()
         .find(|d| d.label() == label)
         .ok_or_else(|| anyhow::anyhow!("no estimator `{label}`"))?;
-    let (c, b) = theorem1_means(sc, def.samples())
+    let (c, b) = sc
+        .theorem1_means(def.samples())
         .ok_or_else(|| anyhow::anyhow!("no agent has a feasible RAL on the nominal graph"))?;
     let (Some(psi), Some(delta)) = (
         res.series(label, "psi"),

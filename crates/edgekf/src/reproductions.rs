@@ -241,15 +241,25 @@ pub const ENTRIES: &[Entry] = &[
 fn scenario_of(file: &str, text: &str) -> Result<crate::scenario::Scenario, String> {
     let spec: crate::scenario::ScenarioSpec =
         toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
-    let fw = match &spec.framework.file {
-        Some(p) => Some(
-            framework_text(p)
-                .ok_or_else(|| format!("{file}: framework file `{p}` is not embedded"))
-                .and_then(crate::scenario::FrameworkSpec::from_framework_json)?,
-        ),
-        None => None,
-    };
+    let fw = framework_of(&spec).map_err(|e| format!("{file}: {e}"))?;
     crate::scenario::Scenario::from_spec(&spec, fw.as_ref()).map_err(|e| format!("{file}: {e}"))
+}
+
+/// The embedded framework file a shipped scenario names (`framework.file`), parsed; `None`
+/// when it names none.
+///
+/// # Errors
+/// A message when the file is not embedded or does not parse.
+pub fn framework_of(
+    spec: &crate::scenario::ScenarioSpec,
+) -> Result<Option<crate::scenario::FrameworkSpec>, String> {
+    match &spec.framework.file {
+        Some(p) => framework_text(p)
+            .ok_or_else(|| format!("framework file `{p}` is not embedded"))
+            .and_then(crate::scenario::FrameworkSpec::from_framework_json)
+            .map(Some),
+        None => Ok(None),
+    }
 }
 
 /// Looks a name up.

@@ -11,6 +11,7 @@ mod framework_file;
 mod resolved;
 mod spec;
 mod sweep;
+mod theorem1;
 
 use std::sync::Arc;
 

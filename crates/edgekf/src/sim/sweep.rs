@@ -125,8 +125,9 @@ fn time_average(values: &[f64], runs: usize, valid: usize, window: &Range<usize>
         .collect()
 }
 
-/// Whether each run is stable by `rule` (see the module docs).
-fn stable_runs(res: &Results, label: &str, rule: &StableSpec) -> Option<Vec<f64>> {
+/// Whether each run of `label` is stable by `rule` (see the module docs): 1 or 0 per run;
+/// `None` when the results have no such estimator or no `tracking_error`.
+pub fn stable_runs(res: &Results, label: &str, rule: &StableSpec) -> Option<Vec<f64>> {
     let e = res.estimator(label)?;
     let delta = res.values(label, "tracking_error")?;
     let runs = res.runs.len();
