@@ -478,3 +478,125 @@ fn indicator(
             "means over {n} runs; Theorem 1 on the nominal graph: c̄ = {c:.4}, b̄ = {b:.4e} (averages of c_i, b_i over the agents)"
         )))
 }
+
+#[cfg(test)]
+mod tests {
+    //! Issue 16, point 1, for this module's plot kinds (`panels`, `summary`, `indicator`): each
+    //! shipped GA-RKF figure is drawn from results whose every value is pathological, without a
+    //! panic and in bounded time (the toolkit's own kinds are in `tests/figure_pathological.rs`).
+
+    use std::time::{Duration, Instant};
+
+    use edgekf::reproductions;
+    use edgekf::sim::{self, Quiet};
+
+    use super::*;
+
+    /// Value `i` of a pathological series.
+    type Series = fn(usize) -> f64;
+
+    const SERIES: &[(&str, Series)] = &[
+        ("nan", |_| f64::NAN),
+        ("huge", |_| 1e300),
+        ("tiny", |_| 1e-300),
+        ("zero", |_| 0.0),
+        ("negative", |i| -1.0 - i as f64),
+        ("infinite", |i| if i % 2 == 0 { f64::INFINITY } else { 1.0 }),
+        (
+            "alternating-huge",
+            |i| if i % 2 == 0 { 1e300 } else { -1e300 },
+        ),
+        ("dynamic-range", |i| 10f64.powi((i % 600) as i32 - 300)),
+        ("mostly-nan", |i| if i % 7 == 0 { 1.0 } else { f64::NAN }),
+    ];
+
+    fn poison(res: &mut Results, f: Series) {
+        for e in &mut res.estimators {
+            for v in &mut e.values {
+                for (i, x) in v.iter_mut().enumerate() {
+                    *x = f(i);
+                }
+            }
+        }
+    }
+
+    fn poison_sweep(sw: &mut SweepResults, f: Series) {
+        poison(&mut sw.base, f);
+        for p in &mut sw.points {
+            poison(&mut p.results, f);
+        }
+        for (i, row) in sw.summary.iter_mut().enumerate() {
+            row.mean = f(i);
+            row.std = f(i + 1);
+        }
+    }
+
+    fn tiny(sc: Scenario) -> Scenario {
+        sc.with_size(Some(2), Some(120), Some(10))
+            .expect("tiny size")
+    }
+
+    #[test]
+    fn garkf_figures_survive_pathological_data_in_bounded_time() {
+        let dir = std::env::temp_dir().join(format!("edgekf-garkf-patho-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let limit = Duration::from_secs(20);
+        let mut drawn = 0;
+        for name in [
+            "garkf-fig8",
+            "garkf-fig9",
+            "garkf-fig10",
+            "garkf-fig11",
+            "garkf-fig12",
+            "garkf-fig13",
+        ] {
+            let e = reproductions::find(name).unwrap();
+            let sc = tiny(e.scenario().unwrap());
+            let companions: Vec<Scenario> = e
+                .companion_scenarios()
+                .unwrap()
+                .into_iter()
+                .map(tiny)
+                .collect();
+            let clean = sim::sweep::run(&sc, &Quiet).unwrap();
+            let clean_companions: Vec<SweepResults> = companions
+                .iter()
+                .map(|c| sim::sweep::run(c, &Quiet).unwrap())
+                .collect();
+            for (sname, f) in SERIES {
+                let mut sw = clean.clone();
+                poison_sweep(&mut sw, *f);
+                let mut comp = clean_companions.clone();
+                for c in &mut comp {
+                    poison_sweep(c, *f);
+                }
+                let extra = Extra {
+                    sweep: sc.sweep().is_some().then_some(&sw),
+                    companions: companions.iter().zip(&comp).collect(),
+                };
+                for p in sc.plots().iter().filter(|p| handles(p)) {
+                    let path = dir.join(format!("{name}-{}-{sname}.png", p.file()));
+                    let t = Instant::now();
+                    let out = render(&path, p, &sc, &sw.base, &extra);
+                    assert!(
+                        t.elapsed() < limit,
+                        "{name} {} on `{sname}` took {:?}",
+                        p.file(),
+                        t.elapsed()
+                    );
+                    assert!(
+                        out.is_ok(),
+                        "{name} {} on `{sname}` is not drawn: {:?}",
+                        p.file(),
+                        out.err()
+                    );
+                    assert!(path.exists(), "{}", path.display());
+                    drawn += 1;
+                }
+            }
+        }
+        // fig8, fig10, fig12 panels; fig9 indicator; fig11 panels + summary; fig13 summary.
+        assert_eq!(drawn, 7 * SERIES.len());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
