@@ -429,6 +429,20 @@ pub fn studies() -> Vec<Study> {
             ..full("garkf-fig11-low", "garkf-fig11", 1)
         },
         Study {
+            about: "λ = 0.2 (sweep value 1), 10 runs, 60 s, plus RKF and GA-RKF with σ_w = 0.1",
+            edit: Edit {
+                point: Some(1),
+                keep: Some(&["no estimator"]),
+                add: &[
+                    r#"{"kind": "rkf-ca", "label": "RKF σw=0.1", "sigma_w": 0.1}"#,
+                    r#"{"kind": "garkf", "label": "GA-RKF σw=0.1", "sigma_w": 0.1, "epsilon": 0.08}"#,
+                ],
+                ..Edit::default()
+            },
+            small_runs: 2,
+            ..full("garkf-fig11-low-matched", "garkf-fig11", 1)
+        },
+        Study {
             about: "λ = 0.8 (sweep value 4), 10 runs, 60 s",
             edit: Edit {
                 point: Some(4),

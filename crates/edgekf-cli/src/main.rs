@@ -564,6 +564,9 @@ fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
     if let Some(s) = over.seed {
         sc = sc.with_seed(s);
     }
+    for w in sc.window_warnings() {
+        eprintln!("warning: {}: {w}", sc.name());
+    }
     Ok(sc)
 }
 

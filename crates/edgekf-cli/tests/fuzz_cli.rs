@@ -155,3 +155,60 @@ fn plotting_hang_inputs_figure_with_sigma_w_1e12() {
     );
     assert!(!matches!(v, Verdict::Defect(..)), "{v:?}: {stderr}");
 }
+
+/// Case #9209 of the first 10⁵-case run: `garkf-fig11.toml` with `faults.availability = 0`
+/// wrote `NaN` rows of `psi` and `theta_ral_*` (no agent ever has a feasible RAL) and exited 0.
+/// A value no run defines has no row now (docs/formats.md).
+#[test]
+fn regression_availability_0_writes_no_nan_rows() {
+    let (v, stderr) = regression(
+        "garkf-fig11-availability-0.toml",
+        &["--runs", "2", "--steps", "30", "--threads", "1"],
+    );
+    assert_eq!(v, Verdict::Ran, "{stderr}");
+}
+
+/// Cases #2205 and #3224: `garkf-fig10.toml` with the CA filters' `sigma_w` = 1e150 or 1e12
+/// ran and wrote a NaN PCRB (and, at 1e12, a covariance collapsed to 1e-16): the process noise
+/// swamps the measurements beyond what f64 carries. Refused now, naming the option.
+#[test]
+fn regression_ca_sigma_w_beyond_f64_is_refused() {
+    for file in [
+        "garkf-fig10-sigma-w-1e150.toml",
+        "garkf-fig10-sigma-w-1e12.toml",
+    ] {
+        refused_naming(
+            file,
+            &["--runs", "2", "--steps", "30", "--threads", "1"],
+            "option `sigma_w`",
+        );
+    }
+}
+
+/// Case #5498: a panels figure listing one metric 500 times drew 500 panels past the 10 s
+/// limit. A metric listed twice is refused now.
+#[test]
+fn regression_panel_metric_listed_500_times_is_refused() {
+    refused_naming(
+        "garkf-panels-metric-listed-500-times.toml",
+        &["--runs", "2", "--steps", "30"],
+        "key `plots[0].rows`",
+    );
+}
+
+/// Cases #10147 and #17987: `--steps 30` shortened a GA-RKF sweep below its `sweep.window`; the run
+/// succeeded but its `scenario.json` was refused ("starts after the end of the run"). A window
+/// after the end is accepted on every path now (its summaries are left out, with a warning),
+/// so the resolved scenario re-runs.
+#[test]
+fn regression_window_after_a_shortened_run_round_trips() {
+    let (v, stderr) = regression(
+        "garkf-sweep-window-after-shortened-run.toml",
+        &["--runs", "2", "--steps", "30"],
+    );
+    assert!(!matches!(v, Verdict::Defect(..)), "{v:?}: {stderr}");
+    assert!(
+        stderr.contains("starts after the end of the run"),
+        "{stderr}"
+    );
+}

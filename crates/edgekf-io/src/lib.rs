@@ -182,8 +182,9 @@ impl Drop for Staged {
 }
 
 /// `metrics.csv` (the output contract, docs/formats.md): `estimator,step,time,metric,mean,std`, one row per
-/// estimator, valid reported step and metric; mean and std (ddof = 1) across runs, reduced in
-/// run order.
+/// estimator, valid reported step and metric that some run defines (a run's NaN is an undefined
+/// value, e.g. ψ before the agent's first feasible RAL: it is left out of the mean and std, and a
+/// step no run defines has no row); mean and std (ddof = 1) across runs, reduced in run order.
 pub fn metrics_csv(res: &Results) -> String {
     let runs = res.runs.len();
     let mut s = String::with_capacity(res.estimators.len() * res.steps.len() * 5 * 64);
@@ -192,6 +193,11 @@ pub fn metrics_csv(res: &Results) -> String {
         for (m, metric) in e.metrics.iter().enumerate() {
             let ser = edgekf::sim::Series::of(&e.values[m], runs, e.valid);
             for (k, &step) in res.steps.iter().take(e.valid).enumerate() {
+                // A quantity no run defines at this step (ψ before any feasible RAL, or
+                // never at λ = 0) has no row: an absent row, not a NaN.
+                if ser.mean[k].is_nan() {
+                    continue;
+                }
                 let _ = writeln!(
                     s,
                     "{},{step},{},{metric},{},{}",

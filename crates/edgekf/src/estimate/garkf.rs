@@ -78,7 +78,7 @@ use super::ca::{packed_index, packed_len};
 use super::pcrb::Observation;
 use super::ral::{
     consensus_stability, estimate_from_sums, InfeasibleRal, RalEstimate, RalOptions, RalSums,
-    RalVariant,
+    RalVariant, DEFAULT_RANK_TOL,
 };
 use super::rkf_ca::{
     ca_cost, check_ca, default_sigma_w, pcrb_runs, quantity_ca, Bound, CaEdges, PcrbTrack,
@@ -131,6 +131,14 @@ struct GarkfOptions {
     /// ε at or above its bound: `refuse` (default) or `scale`.
     #[serde(default)]
     epsilon_policy: EpsilonPolicy,
+    /// Relative singular-value threshold below which H_i counts as rank-deficient, so its RAL
+    /// as infeasible (default [`DEFAULT_RANK_TOL`] = 1e-6: only numerically singular H).
+    #[serde(default = "default_rank_tol")]
+    ral_rank_tol: f64,
+}
+
+fn default_rank_tol() -> f64 {
+    DEFAULT_RANK_TOL
 }
 
 /// The consensus step size bound of the nominal graph with every RAL feasible.
@@ -163,6 +171,12 @@ impl EstimatorKind for GarkfKind {
             return Err(format!(
                 "option `epsilon` must be positive and finite, got {}",
                 opt.epsilon
+            ));
+        }
+        if !(opt.ral_rank_tol > 0.0 && opt.ral_rank_tol < 1.0) {
+            return Err(format!(
+                "option `ral_rank_tol` must lie in (0, 1) (a share of the largest singular value of H_i), got {}",
+                opt.ral_rank_tol
             ));
         }
         if matches!(opt.ral, RalVariant::Rotation | RalVariant::Similarity) && m.dim < 2 {
@@ -208,6 +222,7 @@ impl Config {
             eps: self.eps,
             variant: self.opt.ral,
             mode: self.opt.infeasible,
+            rank_tol: self.opt.ral_rank_tol,
         }
     }
 }
@@ -223,6 +238,8 @@ pub struct Settings {
     pub variant: RalVariant,
     /// How infeasible RALs enter.
     pub mode: InfeasibleRal,
+    /// The RAL's rank threshold ([`RalOptions::rank_tol`]).
+    pub rank_tol: f64,
 }
 
 impl Configured for Config {
@@ -345,7 +362,10 @@ impl<const D: usize> Garkf<D> {
             metric_edge: m.metric_edge,
             pcrb,
             st,
-            opts: RalOptions::default(),
+            opts: RalOptions {
+                rank_tol: st.rank_tol,
+                ..RalOptions::default()
+            },
             agents: m.agents,
             n_agents: m.agents as f64,
             agent_edges: m.agent_edges.clone(),

@@ -72,6 +72,7 @@ pub(crate) fn check_ca(m: &Model, sigma_w: f64) -> Result<(), String> {
     if !(1..=3).contains(&m.dim) {
         return Err(format!("the CA model needs D = 1, 2 or 3, got {}", m.dim));
     }
+    let mut r_min = f64::INFINITY;
     for (e, r) in m.r.iter().enumerate() {
         if r.clone().cholesky().is_none() {
             let (i, j) = m.edges[e];
@@ -79,9 +80,26 @@ pub(crate) fn check_ca(m: &Model, sigma_w: f64) -> Result<(), String> {
                 "the CA filters need a positive definite measurement covariance; edge ({i}, {j}) has none (key `noise.sigma_v`)"
             ));
         }
+        r_min = r_min.min(r.symmetric_eigenvalues().min());
+    }
+    // The position variance (7) adds per step, σ_w² Δt⁴ / 4, against the measurement's: above
+    // 1e8 times R the Joseph update and the PCRB lose their digits in f64 (measured: the PCRB
+    // departs from the covariance at 1e10 and is NaN beyond; the covariance collapses to 1e-16
+    // at 1e20).
+    let ratio = sigma_w * sigma_w * m.dt.powi(4) / 4.0 / r_min;
+    if ratio.is_nan() || ratio > MAX_PROCESS_TO_MEASUREMENT {
+        return Err(format!(
+            "option `sigma_w` = {sigma_w:e} adds a position variance σ_w²Δt⁴/4 = {:.3e} per step, {ratio:.1e} times the smallest measurement variance; f64 cannot carry a filter above {MAX_PROCESS_TO_MEASUREMENT:e} times (σ_w ≤ {:.3e} here)",
+            sigma_w * sigma_w * m.dt.powi(4) / 4.0,
+            (MAX_PROCESS_TO_MEASUREMENT * 4.0 * r_min).sqrt() / (m.dt * m.dt)
+        ));
     }
     Ok(())
 }
+
+/// The largest ratio of the per-step position variance of the CA model (7) to the measurement
+/// variance that the filters carry in f64 ([`check_ca`]).
+const MAX_PROCESS_TO_MEASUREMENT: f64 = 1e8;
 
 impl EstimatorKind for RkfCaKind {
     fn name(&self) -> &'static str {

@@ -252,20 +252,55 @@ pub fn summary_metrics(sc: &Scenario) -> Vec<String> {
     out
 }
 
-fn window(key: &str, w: [f64; 2], horizon: f64) -> Result<(), ScenarioError> {
+/// A well-formed window. One that starts after the end of the run is accepted (a `--steps`
+/// override may shorten a run below its windows, and the resolved scenario of that run must
+/// re-run): its summaries are undefined and left out, and [`Scenario::window_warnings`] says so.
+fn window(key: &str, w: [f64; 2]) -> Result<(), ScenarioError> {
     if !(w[0].is_finite() && w[1].is_finite() && w[0] >= 0.0 && w[0] < w[1]) {
         return Err(err(
             key,
             format!("must be a time window [t0, t1] with 0 ≤ t0 < t1, got {w:?}"),
         ));
     }
-    if w[0] > horizon {
-        return Err(err(
-            key,
-            format!("starts after the end of the run ({horizon} s)"),
-        ));
-    }
     Ok(())
+}
+
+impl Scenario {
+    /// The windows (of the sweep and the figures) that start after the end of the run, as
+    /// warnings naming the key: their summaries and panels are empty.
+    pub fn window_warnings(&self) -> Vec<String> {
+        let horizon = self.steps() as f64 * self.dt();
+        let mut out = Vec::new();
+        let mut warn = |key: String, w: [f64; 2]| {
+            if w[0] > horizon {
+                out.push(format!(
+                    "`{key}` = [{}, {}] s starts after the end of the run ({horizon} s): nothing is summarised over it",
+                    w[0], w[1]
+                ));
+            }
+        };
+        if let Some(spec) = &self.sweep {
+            if let Some(w) = spec.window {
+                warn("sweep.window".into(), w);
+            }
+            if let Some(st) = &spec.stable {
+                warn("sweep.stable.reference".into(), st.reference);
+                warn("sweep.stable.final".into(), st.final_window);
+            }
+        }
+        for (i, p) in self.plots().iter().enumerate() {
+            if let PlotSpec::Panels {
+                window: Some(w), ..
+            }
+            | PlotSpec::Indicator {
+                window: Some(w), ..
+            } = p
+            {
+                warn(format!("plots[{i}].window"), *w);
+            }
+        }
+        out
+    }
 }
 
 /// The checks of a sweep: its keys, windows, labels, and every value's scenario.
@@ -299,13 +334,12 @@ pub(super) fn check(sc: &Scenario, registry: &Registry) -> Result<(), ScenarioEr
             }
         }
     }
-    let horizon = sc.steps() as f64 * sc.dt();
     if let Some(w) = spec.window {
-        window(&key("sweep.window"), w, horizon)?;
+        window(&key("sweep.window"), w)?;
     }
     if let Some(st) = &spec.stable {
-        window(&key("sweep.stable.reference"), st.reference, horizon)?;
-        window(&key("sweep.stable.final"), st.final_window, horizon)?;
+        window(&key("sweep.stable.reference"), st.reference)?;
+        window(&key("sweep.stable.final"), st.final_window)?;
         if !(st.factor.is_finite() && st.factor > 0.0) {
             return Err(err(
                 &key("sweep.stable.factor"),
@@ -353,7 +387,17 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
                     "needs at least one row of metrics",
                 ));
             }
+            // Each metric once: a panel per metric is bounded by the metrics there are (a
+            // metric repeated 500 times drew 500 panels for a minute).
+            let mut seen: Vec<&str> = Vec::new();
             for m in rows.iter().flatten() {
+                if seen.contains(&m.as_str()) {
+                    return Err(err(
+                        &format!("{key}.rows"),
+                        format!("`{m}` is listed twice; list each metric once"),
+                    ));
+                }
+                seen.push(m);
                 known(sc, &format!("{key}.rows"), m)?;
                 if band == "min-max" {
                     known(sc, &format!("{key}.band"), &format!("{m}_min"))?;
@@ -388,7 +432,7 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
                 return Err(err(&format!("{key}.target_trace"), "needs a [maneuver]"));
             }
             if let Some(w) = w {
-                window(&format!("{key}.window"), *w, sc.steps() as f64 * sc.dt())?;
+                window(&format!("{key}.window"), *w)?;
             }
             Ok(())
         }
@@ -410,7 +454,7 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
                 known(sc, &format!("{key}.estimator"), m)?;
             }
             if let Some(w) = w {
-                window(&format!("{key}.window"), *w, sc.steps() as f64 * sc.dt())?;
+                window(&format!("{key}.window"), *w)?;
             }
             Ok(())
         }

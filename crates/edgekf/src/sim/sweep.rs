@@ -126,7 +126,8 @@ fn time_average(values: &[f64], runs: usize, valid: usize, window: &Range<usize>
 }
 
 /// Whether each run of `label` is stable by `rule` (see the module docs): 1 or 0 per run;
-/// `None` when the results have no such estimator or no `tracking_error`.
+/// `None` when the results have no such estimator or no `tracking_error`, or a window of the
+/// rule has no report.
 pub fn stable_runs(res: &Results, label: &str, rule: &StableSpec) -> Option<Vec<f64>> {
     let e = res.estimator(label)?;
     let delta = res.values(label, "tracking_error")?;
@@ -137,6 +138,10 @@ pub fn stable_runs(res: &Results, label: &str, rule: &StableSpec) -> Option<Vec<
     }
     let reference = reports_in(res, Some(rule.reference));
     let fin = reports_in(res, Some(rule.final_window));
+    if reference.is_empty() || fin.is_empty() {
+        // A window after the end of the run: stability is undefined.
+        return None;
+    }
     let before = time_average(delta, runs, nr, &reference);
     let after = time_average(delta, runs, nr, &fin);
     Some(
@@ -161,6 +166,10 @@ fn summarise(sc: &Scenario, point: usize, res: &Results, out: &mut Vec<SummaryRo
         for (m, name) in e.metrics.iter().enumerate() {
             let per_run = time_average(&e.values[m], runs, e.valid, &window);
             let (mean, std) = mean_std(&per_run);
+            if mean.is_nan() {
+                // Undefined in every run (an empty window, or ψ never defined): no row.
+                continue;
+            }
             out.push(SummaryRow {
                 estimator: e.label.clone(),
                 point,
