@@ -400,6 +400,17 @@ fn summary(
             .collect();
         if !off.is_empty() && lo.is_finite() && kept > 0.0 {
             panel.y_axis = panel.y_axis.with_range(lo / 3.0, kept * 10.0);
+            // A diverged point's ±1σ band spans its own hundreds of decades: leave it out.
+            for c in &mut panel.curves {
+                if let Some((blo, bhi)) = &mut c.band {
+                    for (k, y) in c.y.iter().enumerate() {
+                        if y.is_nan() || *y > top {
+                            blo[k] = f64::NAN;
+                            bhi[k] = f64::NAN;
+                        }
+                    }
+                }
+            }
             note = format!(
                 "{note}; off the top (diverged, > 10⁶ × the smallest mean): {}",
                 off.join(", ")
