@@ -45,6 +45,7 @@
 
 pub mod ar;
 pub mod batch;
+pub mod batch_aos;
 pub mod ca;
 pub mod crkf;
 pub mod garkf;
