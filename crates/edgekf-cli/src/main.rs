@@ -18,12 +18,11 @@ mod bench;
 mod claims;
 mod design;
 mod io;
-mod plot;
-mod plot_garkf;
 mod report;
 mod slam;
 mod summary;
 use edgekf_figure as figure;
+use edgekf_figure::{plot, plot_garkf};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -583,7 +582,7 @@ pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results>
 fn write_provenance(dir: &Path) -> Result<()> {
     let path = dir.join("provenance.json");
     let tmp = dir.join(format!(".provenance.json.{}.tmp", std::process::id()));
-    fs::write(&tmp, report::Provenance::current().to_json())
+    fs::write(&tmp, report::Provenance::of_process().to_json())
         .with_context(|| format!("cannot write {}", tmp.display()))?;
     fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))
 }
@@ -616,19 +615,9 @@ fn stage_outputs(
     edgekf_io::stage_tables(st, sc, res)?;
     st.write(
         "provenance.json",
-        report::Provenance::current().to_json().as_bytes(),
+        report::Provenance::of_process().to_json().as_bytes(),
     )?;
-    for p in sc.plots() {
-        if plots.is_none_or(|want| want.contains(&p.file())) {
-            let path = st.path(&format!("{}.png", p.file()));
-            if plot_garkf::handles(p) {
-                plot_garkf::render(&path, p, sc, res, extra)?;
-            } else {
-                plot::render(&path, p, sc, res)?;
-            }
-        }
-    }
-    Ok(())
+    figure::render_study(|file| st.path(file), sc, res, plots, extra)
 }
 
 fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {

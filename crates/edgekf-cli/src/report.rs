@@ -30,47 +30,7 @@ use serde_json::Value;
 
 use crate::summary;
 
-/// Schema of `provenance.json`.
-pub const PROVENANCE_SCHEMA: &str = "edgekf.provenance/1";
-
-/// The program: crate version and, when built from a git checkout, the commit.
-pub fn program() -> String {
-    let commit = env!("EDGEKF_GIT_COMMIT");
-    if commit.is_empty() {
-        format!("edgekf {} (git commit unknown)", env!("CARGO_PKG_VERSION"))
-    } else {
-        format!("edgekf {} (git {commit})", env!("CARGO_PKG_VERSION"))
-    }
-}
-
-/// `provenance.json`: what produced a directory.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Provenance {
-    /// `edgekf.provenance/1`.
-    pub schema: String,
-    /// Crate version.
-    pub version: String,
-    /// Git commit of the build (empty: unknown).
-    pub commit: String,
-    /// The command line, one argument per entry.
-    pub command: Vec<String>,
-}
-
-impl Provenance {
-    /// This process.
-    pub fn current() -> Self {
-        Provenance {
-            schema: PROVENANCE_SCHEMA.into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            commit: env!("EDGEKF_GIT_COMMIT").into(),
-            command: std::env::args().collect(),
-        }
-    }
-    /// The JSON text.
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
-    }
-}
+pub use edgekf_io::{program, Provenance};
 
 /// The command line as a shell would take it back.
 fn shell_line(args: &[String]) -> String {

@@ -181,6 +181,55 @@ impl Drop for Staged {
     }
 }
 
+/// Schema of `provenance.json`.
+pub const PROVENANCE_SCHEMA: &str = "edgekf.provenance/1";
+
+/// Git commit this code was built from (empty when unknown: not a git checkout, or no git).
+pub const GIT_COMMIT: &str = env!("EDGEKF_GIT_COMMIT");
+
+/// The program: crate version and, when built from a git checkout, the commit.
+pub fn program() -> String {
+    if GIT_COMMIT.is_empty() {
+        format!("edgekf {} (git commit unknown)", env!("CARGO_PKG_VERSION"))
+    } else {
+        format!("edgekf {} (git {GIT_COMMIT})", env!("CARGO_PKG_VERSION"))
+    }
+}
+
+/// `provenance.json`: what produced a directory.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct Provenance {
+    /// `edgekf.provenance/1`.
+    pub schema: String,
+    /// Crate version.
+    pub version: String,
+    /// Git commit of the build (empty: unknown).
+    pub commit: String,
+    /// The command line, one argument per entry.
+    pub command: Vec<String>,
+}
+
+impl Provenance {
+    /// This build, run by `command` (the CLI's arguments; for Python, the interpreter's
+    /// `sys.argv` and the call).
+    pub fn new(command: Vec<String>) -> Self {
+        Provenance {
+            schema: PROVENANCE_SCHEMA.into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            commit: GIT_COMMIT.into(),
+            command,
+        }
+    }
+    /// This process, with its command line.
+    pub fn of_process() -> Self {
+        Self::new(std::env::args().collect())
+    }
+    /// The JSON text.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
+    }
+}
+
 /// `metrics.csv` (the output contract, docs/formats.md): `estimator,step,time,metric,mean,std`, one row per
 /// estimator, valid reported step and metric that some run defines (a run's NaN is an undefined
 /// value, e.g. ψ before the agent's first feasible RAL: it is left out of the mean and std, and a

@@ -16,7 +16,7 @@ use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::sweep::SweepResults;
 use edgekf::sim::Results;
 
-use crate::figure::{Axis, Curve, Dash, Figure, Marker, Panel, Shape, Style};
+use crate::{Axis, Curve, Dash, Figure, Marker, Panel, Shape, Style};
 
 /// What a figure may draw from besides the scenario's own results.
 #[derive(Default)]
@@ -129,11 +129,8 @@ fn target_trace(sc: &Scenario, res: &Results, window: Option<[f64; 2]>) -> Optio
         })
         .collect();
     Some(
-        Curve::new("tr Θ*", x, y).with_style(
-            Style::line()
-                .colour(crate::figure::Rgb::BLACK)
-                .dash(Dash::Dashed),
-        ),
+        Curve::new("tr Θ*", x, y)
+            .with_style(Style::line().colour(crate::Rgb::BLACK).dash(Dash::Dashed)),
     )
 }
 

@@ -20,7 +20,7 @@ use std::sync::LazyLock;
 
 use ab_glyph::{point, Font, FontRef, Glyph, PxScale, ScaleFont};
 
-static FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+static FONT_BYTES: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
 /// The bundled DejaVu Sans (a valid font checked by a unit test, so parsing cannot fail).
 static FONT: LazyLock<FontRef<'static>> =

@@ -1,5 +1,5 @@
-//! Records the git commit the binary is built from (`EDGEKF_GIT_COMMIT`, empty when the source is
-//! not a git checkout or git is missing), for the provenance of report pages.
+//! Records the git commit the code is built from (`EDGEKF_GIT_COMMIT`, empty when the source is
+//! not a git checkout or git is missing), for `provenance.json` (written by the CLI and the Python package).
 
 use std::process::Command;
 

@@ -37,6 +37,8 @@ pub mod backend;
 pub mod coincide;
 pub mod legend;
 pub mod palette;
+pub mod plot;
+pub mod plot_garkf;
 pub mod range;
 pub mod raster;
 mod render;
@@ -52,6 +54,33 @@ pub use range::{AxisReport, FloorRule};
 pub use raster::{Canvas, PxRect, Rgb, Shape};
 pub use text::{HAlign, VAlign};
 pub use ticks::Tick;
+
+/// Draws the figures of a study — every plot of the scenario, or those whose file stem is in
+/// `only` — each to `path_of("STEM.png")` (the CLI and the Python package stage them in a
+/// temporary directory). GA-RKF panels, sweep summaries and the indicator figure go to
+/// [`plot_garkf`] (with `extra`: a sweep's results, a companion run), the rest to [`plot`].
+///
+/// # Errors
+/// When a figure cannot be written, or a GA-RKF figure lacks the data it needs.
+pub fn render_study(
+    mut path_of: impl FnMut(&str) -> PathBuf,
+    sc: &edgekf::scenario::Scenario,
+    res: &edgekf::sim::Results,
+    only: Option<&[&str]>,
+    extra: &plot_garkf::Extra<'_>,
+) -> anyhow::Result<()> {
+    for p in sc.plots() {
+        if only.is_none_or(|want| want.contains(&p.file())) {
+            let path = path_of(&format!("{}.png", p.file()));
+            if plot_garkf::handles(p) {
+                plot_garkf::render(&path, p, sc, res, extra)?;
+            } else {
+                plot::render(&path, p, sc, res)?;
+            }
+        }
+    }
+    Ok(())
+}
 
 /// Errors of writing a figure.
 #[derive(Debug)]

@@ -20,7 +20,7 @@ use anyhow::{Context, Result};
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::{Outcome, Results};
 
-use crate::figure::{
+use crate::{
     coincide, palette, Axis, CoincideGroup, Curve, Dash, Figure, HAlign, Inset, Label, LegendMode,
     Marker, Panel, RenderReport, Shape, Style, VAlign,
 };
@@ -224,7 +224,7 @@ pub fn figure(spec: &PlotSpec, sc: &Scenario, res: &Results) -> Figure {
 }
 
 /// The colour of estimator `label`: its position in the study, so it is the same in every figure.
-fn colour_of(res: &Results, label: &str) -> crate::figure::Rgb {
+fn colour_of(res: &Results, label: &str) -> crate::Rgb {
     palette::series(
         res.estimators
             .iter()
@@ -673,11 +673,11 @@ mod tests {
         // No band drawn: every curve is a bare line.
         assert!(fig.panels[0].curves.iter().all(|c| c.band.is_none()));
         // The transient is on the log-time axis: the first point lies at the first step.
-        assert_eq!(rep.panels[0].x_scale, crate::figure::Scale::Log);
+        assert_eq!(rep.panels[0].x_scale, crate::Scale::Log);
         // The legend covers no line (computed placement).
         let l = rep.panels[0].legend.as_ref().expect("a legend");
         assert!(
-            l.covered < crate::figure::legend::LINE_WEIGHT as u64 * 4,
+            l.covered < crate::legend::LINE_WEIGHT as u64 * 4,
             "legend covers {} at {:?}",
             l.covered,
             l.placement
