@@ -9,6 +9,8 @@
 //! No panic crosses into Python: every entry point returns `PyResult`, and a panic in a worker
 //! thread is caught and raised as `RuntimeError`.
 
+mod ca;
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
@@ -16,6 +18,7 @@ use std::time::Duration;
 use edgekf::design::{self, Candidate, CheckReport, LeaderMode, Method};
 use edgekf::estimate::batch_aos::{self, PerEdge};
 use edgekf::scenario::Scenario;
+use edgekf::sim::sweep::SweepResults;
 use edgekf::sim::{self, Outcome, Results};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArrayDyn,
@@ -84,7 +87,7 @@ fn simulate(
     sc: &Scenario,
     threads: Option<usize>,
     progress: bool,
-) -> PyResult<Results> {
+) -> PyResult<(Results, Option<SweepResults>)> {
     if threads == Some(0) {
         return Err(PyValueError::new_err("threads must be positive"));
     }
@@ -99,7 +102,7 @@ fn simulate(
         done: AtomicU64::new(0),
         stop: AtomicBool::new(false),
     };
-    let total = (sc.runs() * sc.steps()) as u64;
+    let total = sim::sweep::total_run_steps(sc);
     let done = AtomicBool::new(false);
     // Waits up to 100 ms for the workers (without the GIL); whether they finished.
     let wait = || {
@@ -121,7 +124,17 @@ fn simulate(
                 }
             }
             let _done = Done(&done);
-            pool.install(|| sim::run_range(sc, 0..sc.runs(), &obs, sim::Options::default()))
+            pool.install(|| -> anyhow::Result<(Results, Option<SweepResults>)> {
+                if sc.sweep().is_some() {
+                    // The scenario at every value of its sweep, then as written (the CLI's
+                    // `run` of a sweep).
+                    let sw = sim::sweep::run(sc, &obs)?;
+                    Ok((sw.base.clone(), Some(sw)))
+                } else {
+                    let res = sim::run_range(sc, 0..sc.runs(), &obs, sim::Options::default())?;
+                    Ok((res, None))
+                }
+            })
         });
         let mut interrupted: Option<PyErr> = None;
         loop {
@@ -152,7 +165,7 @@ fn simulate(
             return Err(e);
         }
         match joined {
-            Ok(Ok(res)) => Ok(res),
+            Ok(Ok(out)) => Ok(out),
             Ok(Err(e)) => Err(PyRuntimeError::new_err(e.to_string())),
             Err(p) => {
                 let msg = p
@@ -180,6 +193,8 @@ type Triple<'py> = (
 struct PyRes {
     sc: Scenario,
     res: Results,
+    /// A sweep's results (its `base` equals `res`).
+    sweep: Option<SweepResults>,
 }
 
 impl PyRes {
@@ -281,11 +296,45 @@ impl PyRes {
             }
         })
     }
-    /// Writes the CLI's tables into `dir` (created if missing), atomically.
-    fn save(&self, dir: PathBuf) -> PyResult<()> {
+    /// Writes the CLI's files into `dir` (created if missing), atomically: the tables, a sweep's
+    /// `summary.csv` and `sweep_metrics.csv`, `provenance.json` (with `command`) and, when
+    /// `figures`, the scenario's figures.
+    #[pyo3(signature = (dir, command, figures=true))]
+    fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool) -> PyResult<()> {
         let mut st = edgekf_io::Staged::new(&dir).map_err(value_err)?;
+        if let Some(sw) = &self.sweep {
+            st.write("summary.csv", edgekf_io::summary_csv(sw).as_bytes())
+                .map_err(value_err)?;
+            st.write(
+                "sweep_metrics.csv",
+                edgekf_io::sweep_metrics_csv(sw).as_bytes(),
+            )
+            .map_err(value_err)?;
+        }
         edgekf_io::stage_tables(&mut st, &self.sc, &self.res).map_err(value_err)?;
+        st.write(
+            "provenance.json",
+            edgekf_io::Provenance::new(command).to_json().as_bytes(),
+        )
+        .map_err(value_err)?;
+        if figures {
+            let extra = edgekf_figure::plot_garkf::Extra {
+                sweep: self.sweep.as_ref(),
+                companions: Vec::new(),
+            };
+            edgekf_figure::render_study(|f| st.path(f), &self.sc, &self.res, None, &extra)
+                .map_err(value_err)?;
+        }
         st.commit().map_err(value_err)
+    }
+    /// A sweep's `summary.csv` as text (`None` without a sweep).
+    fn summary_csv(&self) -> Option<String> {
+        self.sweep.as_ref().map(edgekf_io::summary_csv)
+    }
+    /// The swept key (`None` without a sweep).
+    #[getter]
+    fn sweep_parameter(&self) -> Option<String> {
+        self.sweep.as_ref().map(|s| s.parameter.clone())
     }
     /// `metrics.csv` as text.
     fn metrics_csv(&self) -> String {
@@ -323,8 +372,8 @@ fn run_text(
     let sc = load(source, text, base.as_deref(), is_dict).map_err(value_err)?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|e| value_err(e.context(source.to_string())))?;
-    let res = simulate(py, &sc, threads, progress)?;
-    Ok(PyRes { sc, res })
+    let (res, sweep) = simulate(py, &sc, threads, progress)?;
+    Ok(PyRes { sc, res, sweep })
 }
 
 /// Checks a scenario without running it; returns the resolved scenario as JSON text.
@@ -391,8 +440,8 @@ fn reproduce(
     let sc = e.scenario().map_err(PyValueError::new_err)?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
-    let res = simulate(py, &sc, threads, progress)?;
-    Ok(PyRes { sc, res })
+    let (res, sweep) = simulate(py, &sc, threads, progress)?;
+    Ok(PyRes { sc, res, sweep })
 }
 
 fn links_of(edges: &[[usize; 2]]) -> Vec<(usize, usize)> {
@@ -738,6 +787,7 @@ impl EdgeBank {
 fn _edgekf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRes>()?;
     m.add_class::<EdgeBank>()?;
+    m.add_class::<ca::CaBank>()?;
     m.add_function(wrap_pyfunction!(run_text, m)?)?;
     m.add_function(wrap_pyfunction!(resolve_text, m)?)?;
     m.add_function(wrap_pyfunction!(reproductions, m)?)?;

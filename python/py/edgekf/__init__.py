@@ -13,13 +13,16 @@ Quick start::
     import edgekf
     res = edgekf.run("scenarios/eusipco.toml", runs=20, steps=2000, seed=1)
     t, mean, std = res.metric("rkf", "est_error")   # thesis eq. (4.34)
-    res.save("out")                                 # the CLI's tables
+    res.save("out")                                 # the CLI's files and figures
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
+import sys
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -80,8 +83,9 @@ class Result:
         ``tracking_error`` (Li & Rajan eq. 4), …
     """
 
-    def __init__(self, inner: "_edgekf._Result") -> None:
+    def __init__(self, inner: "_edgekf._Result", call: Optional[str] = None) -> None:
         self._r = inner
+        self._call = call
         self._scenario: Optional[Dict[str, Any]] = None
 
     @property
@@ -163,12 +167,16 @@ class Result:
         for e in self.estimators:
             for m in self.metrics_of(e):
                 t, mean, std = self.metric(e, m)
+                # As in metrics.csv: a step where no run defines the quantity (ψ before any
+                # feasible geometric observation) has no row.
+                keep = ~np.isnan(mean)
+                t, mean, std = t[keep], mean[keep], std[keep]
                 n = len(t)
                 frames.append(
                     pd.DataFrame(
                         {
                             "estimator": [e] * n,
-                            "step": steps[:n],
+                            "step": steps[: len(keep)][keep],
                             "time": t,
                             "metric": [m] * n,
                             "mean": mean,
@@ -180,14 +188,43 @@ class Result:
             return pd.DataFrame(columns=["estimator", "step", "time", "metric", "mean", "std"])
         return pd.concat(frames, ignore_index=True)
 
-    def save(self, dir: Union[str, "os.PathLike[str]"]) -> None:
-        """Writes the CLI's tables into ``dir`` (created if missing), atomically.
+    def save(self, dir: Union[str, "os.PathLike[str]"], *, figures: bool = True) -> None:
+        """Writes the CLI's files into ``dir`` (created if missing), atomically.
 
         ``scenario.json``, ``metrics.csv`` (byte-identical to ``edgekf run``'s), ``paths.csv``,
-        ``inputs.csv`` (when the scenario has input figures) and ``status.csv``, through the
-        CLI's own writers. Figures (PNG) and ``provenance.json`` are the CLI's alone.
+        ``inputs.csv`` (when the scenario has input figures), ``status.csv``, a sweep's
+        ``summary.csv`` and ``sweep_metrics.csv``, ``provenance.json`` (this package's version
+        and git commit, and the Python call that made the result) and, unless ``figures`` is
+        false, the scenario's figures as PNG — through the CLI's own writers and plotting code.
+        ``edgekf report DIR`` then makes the HTML page of the directory.
         """
-        self._r.save(os.fspath(dir))
+        d = os.fspath(dir)
+        if self._call is not None:
+            command = [sys.executable, "-c", f"import edgekf; {self._call}.save({d!r})"]
+        else:
+            command = [sys.executable] + list(sys.argv)
+        self._r.save(d, command, figures)
+
+    @property
+    def sweep_parameter(self) -> Optional[str]:
+        """The swept key of a scenario with a ``[sweep]`` (``None`` otherwise)."""
+        return self._r.sweep_parameter
+
+    def sweep_summary(self) -> Optional[Dict[str, Any]]:
+        """A sweep's summary (the columns of ``summary.csv``; ``None`` without a sweep).
+
+        ``{"estimator": [...], "parameter": [...], "value": [...], "metric": [...],
+        "mean": ndarray, "std": ndarray}``, one entry per estimator, value and summary metric;
+        ``value`` is the value's label as written in the scenario.
+        """
+        text = self._r.summary_csv()
+        if text is None:
+            return None
+        rows = list(csv.DictReader(io.StringIO(text)))
+        out: Dict[str, Any] = {k: [r[k] for r in rows] for k in ("estimator", "parameter", "value", "metric")}
+        out["mean"] = np.array([float(r["mean"]) for r in rows])
+        out["std"] = np.array([float(r["std"]) for r in rows])
+        return out
 
     def __repr__(self) -> str:
         return (
@@ -240,8 +277,17 @@ def run(
             seed=seed,
             threads=threads,
             progress=progress,
-        )
+        ),
+        None
+        if is_dict
+        else _call("run", repr(os.path.abspath(os.fspath(scenario))), runs=runs, steps=steps, every=every, seed=seed),
     )
+
+
+def _call(fn: str, first: str, **kw: Any) -> str:
+    """The Python call that re-makes a result (for ``provenance.json``)."""
+    args = [first] + [f"{k}={v!r}" for k, v in kw.items() if v is not None]
+    return f"edgekf.{fn}({', '.join(args)})"
 
 
 def resolve(scenario: ScenarioLike) -> Dict[str, Any]:
@@ -272,7 +318,8 @@ def reproduce(name: str, **overrides: Any) -> Result:
         raise ValueError(
             f"reproduce: unknown override(s) {', '.join(bad)}; allowed: {', '.join(_OVERRIDES)}"
         )
-    return Result(_edgekf.reproduce(name, **overrides))
+    kw = {k: v for k, v in overrides.items() if k not in ("threads", "progress")}
+    return Result(_edgekf.reproduce(name, **overrides), _call("reproduce", repr(name), **kw))
 
 
 def _config_list(config: Any) -> List[List[float]]:
@@ -356,14 +403,13 @@ def _mat(a: Any, what: str, b: int, d: int, batched: bool) -> np.ndarray:
 
 
 class EdgeFilter:
-    """Relative Kalman filter(s) of edge states, for a user's own loop (EUSIPCO eq. (5)).
+    """Kalman filter(s) of edge states for a user's own loop: one edge, or a batch of B edges
+    (or runs) stepped by one call into Rust per step, not one per edge.
 
-    One edge: ``x0`` of shape (D,); a batch of B edges (or runs): ``x0`` of shape (B, D), and
-    every call takes and returns arrays with that leading batch axis, so a Python loop calls
-    Rust once per step, not once per edge.
-
-    Per step, with ``du = Δt (u_i − u_j)`` the communicated inputs' displacement and ``y`` the
-    mean of the T measurements of ``z_ij``:
+    ``kind="rkf"`` — the relative Kalman filter of EUSIPCO eq. (5) (thesis §4.3). One edge:
+    ``x0`` of shape (D,); a batch: (B, D), and every call takes and returns arrays with that
+    leading batch axis. Per step, with ``du = Δt (u_i − u_j)`` the communicated inputs'
+    displacement and ``y`` the mean of the T measurements of ``z_ij``:
 
     - predict (5c), (5d): ``x̂⁻ = x̂ + du``, ``P⁻ = P + Q``;
     - update (5e)–(5g): ``K = P⁻ (P⁻ + R)⁻¹``, ``x̂ = x̂⁻ + K (y − x̂⁻)``,
@@ -372,6 +418,15 @@ class EdgeFilter:
     ``R`` is the covariance of ``y`` (for T samples of covariance R_ij: R_ij / T); ``Q`` the
     edge's process covariance (Q_ij = B̄_ijᵀ Q B̄_ij, both ends' noise). Matrices may be scalars
     (times I), (D, D), or (B, D, D) in the batched form.
+
+    ``kind="rkf-ca"`` — the constant-acceleration edge filter with intermittent observations of
+    Li & Rajan (eqs. 5–7; the engine's ``rkf-ca``): state ``γ = [z, ż, z̈]`` given as ``x0`` of
+    shape (3, D) (rows: position, velocity, acceleration) or (B, 3, D); ``P0`` (3D, 3D), a
+    scalar (times I) or (B, 3D, 3D); ``R`` the observation covariance as above; ``dt`` the step
+    and ``sigma_w`` the jerk intensity of ``Q = σ_w² q qᵀ ⊗ I_D``, ``q = [Δt²/2, Δt, 1]``
+    (eq. 7). No input: ``predict()`` / ``step(None, y)``. The update corrects only the observed
+    edges: ``observed`` a boolean per edge, or by default the rows of ``y`` without NaN.
+    Returns ``x̂`` as (3, D) / (B, 3, D) and ``P`` as (3D, 3D) / (B, 3D, 3D).
     """
 
     def __init__(
@@ -379,32 +434,71 @@ class EdgeFilter:
         kind: str = "rkf",
         *,
         R: Any,
-        Q: Any,
         x0: Any,
         P0: Any,
+        Q: Any = None,
+        dt: Optional[float] = None,
+        sigma_w: float = 1.0,
     ) -> None:
-        if kind != "rkf":
-            raise ValueError(f"EdgeFilter: unknown kind {kind!r}; available: 'rkf'")
+        if kind not in ("rkf", "rkf-ca"):
+            raise ValueError(f"EdgeFilter: unknown kind {kind!r}; available: 'rkf', 'rkf-ca'")
         self.kind = kind
         x = np.asarray(x0, dtype=np.float64)
-        if x.ndim == 1:
-            self.batched = False
-            x = x[None, :]
-        elif x.ndim == 2:
-            self.batched = True
+        ca = kind == "rkf-ca"
+        if ca:
+            if Q is not None:
+                raise ValueError("EdgeFilter('rkf-ca'): Q is set by dt and sigma_w (Li & Rajan eq. 7); leave Q out")
+            if dt is None:
+                raise ValueError("EdgeFilter('rkf-ca'): dt (the step, s) is required")
+            if x.ndim == 2:
+                self.batched = False
+                x = x[None]
+            elif x.ndim == 3:
+                self.batched = True
+            else:
+                raise ValueError(f"x0: expected shape (3, D) or (B, 3, D), got {x.shape}")
+            if x.shape[1] != 3:
+                raise ValueError(
+                    f"x0: expected shape (3, D) or (B, 3, D) (rows: position, velocity, acceleration), got {np.shape(x0)}"
+                )
+            b, d = x.shape[0], x.shape[2]
         else:
-            raise ValueError(f"x0: expected shape (D,) or (B, D), got {x.shape}")
-        b, d = x.shape
+            if Q is None:
+                raise ValueError("EdgeFilter('rkf'): Q (the edge's process covariance) is required")
+            if dt is not None:
+                raise ValueError("EdgeFilter('rkf'): dt applies to kind 'rkf-ca' only (the RKF's prediction takes du)")
+            if x.ndim == 1:
+                self.batched = False
+                x = x[None, :]
+            elif x.ndim == 2:
+                self.batched = True
+            else:
+                raise ValueError(f"x0: expected shape (D,) or (B, D), got {x.shape}")
+            b, d = x.shape
         if not 1 <= d <= 3:
             raise ValueError(f"x0: D must be 1, 2 or 3, got {d}")
-        self._bank = _edgekf._EdgeBank(
-            np.ascontiguousarray(x),
-            _mat(P0, "P0", b, d, self.batched),
-            _mat(Q, "Q", b, d, self.batched),
-            _mat(R, "R", b, d, self.batched),
-        )
         self.dim = d
         self.batch = b
+        if ca:
+            p0 = np.asarray(P0, dtype=np.float64)
+            if p0.ndim == 0:
+                p0 = p0 * np.eye(3 * d)
+            elif p0.ndim == 3 and not self.batched:
+                raise ValueError(f"P0: expected shape ({3 * d}, {3 * d}), got {p0.shape}")
+            self._ca = _edgekf._CaBank(
+                float(dt),
+                float(sigma_w),
+                np.ascontiguousarray(x),
+                np.ascontiguousarray(p0),
+                _mat(R, "R", b, d, self.batched),
+            )
+        else:
+            self._bank = _edgekf._EdgeBank(
+                np.ascontiguousarray(x),
+                _mat(P0, "P0", b, d, self.batched),
+                _mat(Q, "Q", b, d, self.batched),
+                _mat(R, "R", b, d, self.batched),
+            )
 
     def _arg(self, a: Any, what: str) -> np.ndarray:
         v = np.asarray(a, dtype=np.float64)
@@ -417,28 +511,73 @@ class EdgeFilter:
         x, p = xp
         return (x, p) if self.batched else (x[0], p[0])
 
-    def predict(self, du: Any) -> Tuple[np.ndarray, np.ndarray]:
-        """Prediction (5c), (5d) with the input displacement ``du``; returns ``(x̂⁻, P⁻)``."""
+    def _no_du(self, du: Any) -> None:
+        if du is not None:
+            raise ValueError("du: the CA model (kind 'rkf-ca') has no input; pass None")
+
+    def _observed(self, y: np.ndarray, observed: Any) -> np.ndarray:
+        if observed is None:
+            return ~np.isnan(y).any(axis=1)
+        m = np.asarray(observed)
+        if m.dtype != np.bool_:
+            raise ValueError(f"observed: expected booleans, got dtype {m.dtype}")
+        want = (self.batch,) if self.batched else ()
+        if m.shape != want:
+            raise ValueError(f"observed: expected shape {want}, got {m.shape}")
+        return np.ascontiguousarray(m.reshape(self.batch))
+
+    def predict(self, du: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+        """Prediction: RKF (5c), (5d) with the input displacement ``du``; CA: ``γ̂ ← F γ̂``,
+        ``Λ ← F Λ Fᵀ + Q`` (Li & Rajan eqs. 6, 7; ``du`` must be None). Returns ``(x̂⁻, P⁻)``."""
+        if self.kind == "rkf-ca":
+            self._no_du(du)
+            self._ca.predict()
+            return self._out(self._ca.state())
+        if du is None:
+            raise ValueError("du: the RKF's prediction needs the input displacement Δt (u_i − u_j)")
         return self._out(self._bank.predict(self._arg(du, "du")))
 
-    def update(self, y: Any) -> Tuple[np.ndarray, np.ndarray]:
-        """Update (5e)–(5g) with the measurement mean ``y``; returns ``(x̂, P)``.
+    def update(self, y: Any, observed: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+        """Update with the measurement ``y``; returns ``(x̂, P)``.
 
-        Raises ``ValueError`` (naming the edge) if ``P⁻ + R`` is not positive definite; the
-        state is then unchanged.
+        RKF: (5e)–(5g), every edge observed (``observed`` must be None); raises ``ValueError``
+        (naming the edge) if ``P⁻ + R`` is not positive definite, the state then unchanged.
+        CA: the Joseph-form correction of the observed edges only (``observed``, or the rows of
+        ``y`` without NaN).
         """
+        if self.kind == "rkf-ca":
+            v = self._arg(y, "y")
+            self._ca.update(np.ascontiguousarray(v), self._observed(v, observed))
+            return self._out(self._ca.state())
+        if observed is not None:
+            raise ValueError("observed: kind 'rkf' observes every edge; use kind 'rkf-ca' for intermittent observations")
         return self._out(self._bank.update(self._arg(y, "y")))
 
-    def step(self, du: Any, y: Any) -> Tuple[np.ndarray, np.ndarray]:
-        """``predict(du)`` then ``update(y)``; returns ``(x̂, P)``. Atomic on error."""
+    def step(self, du: Any, y: Any, observed: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+        """``predict(du)`` then ``update(y, observed)``; returns ``(x̂, P)``. Atomic on error."""
+        if self.kind == "rkf-ca":
+            self._no_du(du)
+            v = self._arg(y, "y")
+            mask = self._observed(v, observed)
+            bad = np.flatnonzero(mask & ~np.isfinite(v).all(axis=1))
+            if bad.size:
+                raise ValueError(f"y: row {bad[0]} is observed but not finite (mark a missing observation with observed = False or a NaN row)")
+            self._ca.predict()
+            self._ca.update(np.ascontiguousarray(v), mask)
+            return self._out(self._ca.state())
+        if observed is not None:
+            raise ValueError("observed: kind 'rkf' observes every edge; use kind 'rkf-ca' for intermittent observations")
         return self._out(self._bank.step(self._arg(du, "du"), self._arg(y, "y")))
+
+    def _state(self) -> Tuple[np.ndarray, np.ndarray]:
+        return self._out(self._ca.state() if self.kind == "rkf-ca" else self._bank.state())
 
     @property
     def x(self) -> np.ndarray:
-        """Current estimate ``x̂`` ((D,) or (B, D))."""
-        return self._out(self._bank.state())[0]
+        """Current estimate ``x̂`` (RKF: (D,) or (B, D); CA: (3, D) or (B, 3, D))."""
+        return self._state()[0]
 
     @property
     def P(self) -> np.ndarray:
-        """Current covariance ``P`` ((D, D) or (B, D, D))."""
-        return self._out(self._bank.state())[1]
+        """Current covariance ``P`` (RKF: (D, D) or (B, D, D); CA: (3D, 3D) or (B, 3D, 3D))."""
+        return self._state()[1]

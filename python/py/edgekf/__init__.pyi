@@ -35,8 +35,12 @@ class Result:
     def status(self, estimator: str) -> Dict[str, Any]: ...
     def metrics_csv(self) -> str: ...
     def to_pandas(self) -> Any: ...
-    def save(self, dir: Union[str, os.PathLike[str]]) -> None:
-        """Writes the CLI's tables (metrics.csv byte-identical to `edgekf run`)."""
+    def save(self, dir: Union[str, os.PathLike[str]], *, figures: bool = ...) -> None:
+        """Writes the CLI's files (metrics.csv byte-identical to `edgekf run`), provenance.json
+        and the figures."""
+    @property
+    def sweep_parameter(self) -> Optional[str]: ...
+    def sweep_summary(self) -> Optional[Dict[str, Any]]: ...
 
 def run(
     scenario: ScenarioLike,
@@ -82,7 +86,8 @@ def check(
 ) -> Dict[str, Any]: ...
 
 class EdgeFilter:
-    """RKF of EUSIPCO eq. (5) on one edge (x0: (D,)) or a batch (x0: (B, D))."""
+    """Edge filters for a user's own loop: kind "rkf" (EUSIPCO eq. (5); x0: (D,) or (B, D))
+    or "rkf-ca" (Li & Rajan eqs. 5–7, intermittent observations; x0: (3, D) or (B, 3, D))."""
 
     kind: str
     batched: bool
@@ -93,15 +98,19 @@ class EdgeFilter:
         kind: str = ...,
         *,
         R: npt.ArrayLike,
-        Q: npt.ArrayLike,
         x0: npt.ArrayLike,
         P0: npt.ArrayLike,
+        Q: Optional[npt.ArrayLike] = ...,
+        dt: Optional[float] = ...,
+        sigma_w: float = ...,
     ) -> None: ...
-    def predict(self, du: npt.ArrayLike) -> Tuple[F64, F64]:
-        """(5c), (5d)."""
-    def update(self, y: npt.ArrayLike) -> Tuple[F64, F64]:
-        """(5e)–(5g), Joseph form."""
-    def step(self, du: npt.ArrayLike, y: npt.ArrayLike) -> Tuple[F64, F64]: ...
+    def predict(self, du: Optional[npt.ArrayLike] = ...) -> Tuple[F64, F64]:
+        """RKF (5c), (5d); CA eqs. (6), (7) (du None)."""
+    def update(self, y: npt.ArrayLike, observed: Optional[npt.ArrayLike] = ...) -> Tuple[F64, F64]:
+        """RKF (5e)–(5g), Joseph form; CA: the observed edges only."""
+    def step(
+        self, du: Optional[npt.ArrayLike], y: npt.ArrayLike, observed: Optional[npt.ArrayLike] = ...
+    ) -> Tuple[F64, F64]: ...
     @property
     def x(self) -> F64: ...
     @property
