@@ -589,7 +589,8 @@ pub struct CurveReport {
     pub non_finite: usize,
     /// Points with x or y ≤ 0 on a log axis, left out (their x still spans the x axis when it is usable).
     pub non_positive: usize,
-    /// Band values that are non-finite (left out) or ≤ 0 on a log axis (drawn to the axis bottom).
+    /// Band values that are non-finite (left out), or on a log axis ≤ 0 or more than a decade
+    /// below the lowest curve value (drawn to the axis bottom; the axis is not stretched for them).
     pub band_outside: usize,
     /// Vertices actually stroked after per-column thinning (same pixels, fewer vertices).
     pub vertices_drawn: usize,

@@ -124,6 +124,26 @@ fn prepare<'a>(
     let mut reports = Vec::with_capacity(p.curves.len());
     let (mut xv, mut yv) = (Vec::new(), Vec::new());
     let in_window = |x: f64| window.is_none_or(|(a, b)| x >= a.min(b) && x <= a.max(b));
+    // On a log y axis, a ±1σ band's lower edge is often far below its mean (σ ≈ mean) or ≤ 0;
+    // the axis is not stretched past one decade below the lowest curve value to show it (the
+    // band then runs off the bottom), so the curves keep the height of the plot.
+    let band_floor = match ys {
+        Scale::Log => {
+            let m = p
+                .curves
+                .iter()
+                .flat_map(|c| c.x.iter().zip(&c.y).take(n_points(c)))
+                .filter(|(x, y)| usable(**x, xs) && usable(**y, ys) && in_window(**x))
+                .map(|(_, y)| *y)
+                .fold(f64::INFINITY, f64::min);
+            if m.is_finite() {
+                m / 10.0
+            } else {
+                0.0
+            }
+        }
+        Scale::Linear => f64::NEG_INFINITY,
+    };
     for c in p.curves {
         let n = n_points(c);
         let mut r = CurveReport {
@@ -157,7 +177,7 @@ fn prepare<'a>(
                     continue;
                 }
                 for v in [lo[i], hi[i]] {
-                    if usable(v, ys) {
+                    if usable(v, ys) && v >= band_floor {
                         yv.push(v);
                     } else {
                         r.band_outside += 1;

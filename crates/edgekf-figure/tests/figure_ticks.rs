@@ -193,3 +193,37 @@ fn log_time_axis_labels_decades() {
         rep.panels[0].x
     );
 }
+
+/// A noisy ±1σ band on a log axis (σ about the mean: lower edges tiny or ≤ 0) does not stretch
+/// the axis: it spans at most a decade below the lowest curve value (plus the margin), and the
+/// band values left out are counted.
+#[test]
+fn log_axis_is_not_stretched_by_a_bands_lower_edge() {
+    let t: Vec<f64> = (1..=400).map(|k| f64::from(k) * 0.1).collect();
+    let mean: Vec<f64> = t.iter().map(|t| 1e-2 * (1.5 + (3.0 * t).sin())).collect();
+    // σ alternates just below and above the mean: lower edges 1e-7 … 1e-3 of the mean, or < 0.
+    let sd: Vec<f64> = mean
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            m * if k % 2 == 0 {
+                1.0 - 10f64.powi(-(k as i32 % 7))
+            } else {
+                1.3
+            }
+        })
+        .collect();
+    let lo: Vec<f64> = mean.iter().zip(&sd).map(|(m, s)| m - s).collect();
+    let hi: Vec<f64> = mean.iter().zip(&sd).map(|(m, s)| m + s).collect();
+    let panel = Panel::new(Axis::linear("time t", "s"), Axis::log("tr Λ", "m²"))
+        .with_curve(Curve::new("garkf", t, mean.clone()).with_band(lo, hi));
+    let (_, rep) = Figure::single("band", panel).draw();
+    let p = &rep.panels[0];
+    let lowest = mean.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        p.y.lo >= lowest / 10.0 / 2.0,
+        "axis from {} for a lowest mean {lowest}",
+        p.y.lo
+    );
+    assert!(p.curves[0].band_outside > 100, "{:?}", p.curves[0]);
+}
