@@ -357,6 +357,9 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
             designed.gap
         );
     }
+    if let Some(note) = &designed.note {
+        println!("note: {note}");
+    }
     report
         .verdict()
         .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;

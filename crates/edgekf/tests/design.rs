@@ -636,3 +636,35 @@ mod clarabel {
         }
     }
 }
+
+/// The default method picks what works at the size given (issue 11 point 4): a candidate set of
+/// more than `AUTO_LINKS` links that is not a complete graph is designed on the subgraph of each
+/// agent's nearest candidate neighbours, says so, and passes every check with links from the
+/// candidates only.
+#[test]
+fn sdp_on_a_large_candidate_set_designs_on_its_nearest_neighbour_subgraph() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
+    let cfg = generators::random_config(120, 2, 10.0, &mut rng);
+    let mut c = generators::complete("k120-minus-one", 2, cfg);
+    c.links.retain(|&l| l != (0, 1) && l != (1, 0));
+    assert!(c.links.len() > design::AUTO_LINKS);
+    let d = design::design(&c, Method::Sdp).unwrap();
+    let note = d.note.as_deref().expect("a note says what was done");
+    assert!(note.contains("nearest candidate neighbours"), "{note}");
+    assert_eq!(d.candidate_links, c.links.len());
+    let report = CheckReport::from_framework(&d.framework);
+    assert!(report.passed(), "{report:?}");
+    let kept = d.framework.graph().links();
+    assert!(kept.len() <= 120 * 8, "{} links", kept.len());
+    for &(i, j) in kept {
+        assert!(c.links.contains(&(i, j)) || c.links.contains(&(j, i)));
+    }
+    // The subgraph: every agent keeps its k nearest candidate neighbours, nothing else.
+    let sub = design::nearest_candidate_links(&c, 6);
+    assert!(sub.len() >= 120 * 6 / 2 && sub.len() <= 120 * 6);
+    let near0 = sub.iter().filter(|&&(i, j)| i == 0 || j == 0).count();
+    assert!(near0 >= 6);
+    // Small sets still get the SDP on every candidate, with no note.
+    let small = generators::trilateration(30, 2, 4, &mut rng);
+    assert!(design::design(&small, Method::Sdp).unwrap().note.is_none());
+}

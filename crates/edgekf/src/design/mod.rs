@@ -152,6 +152,10 @@ pub struct Design {
     /// Relative optimality gap of the final SDP, `(s̄ − s)/s` for the certified bound `s̄` on the
     /// optimum (`≤ 1e-6` when the solver converged; 0 for closed forms and constructions).
     pub gap: f64,
+    /// How [`design`] adapted the method to the size of the input, when it did (e.g. an SDP on
+    /// the nearest-neighbour subgraph of a candidate set too large for the interior-point
+    /// method).
+    pub note: Option<String>,
 }
 
 /// The design methods of the CLI.
@@ -179,16 +183,114 @@ impl std::str::FromStr for Method {
     }
 }
 
-/// Designs weights for `candidate` with `method` and default options.
+/// Above this many candidate links [`design`] with [`Method::Sdp`] does not hand the whole set
+/// to the interior-point method (its time grows like `L² m`; measured on 2 cores with
+/// trilateration candidates: 3 990 links at N = 1 000 in 62 s, 5 990 at N = 1 500 in 303 s, so
+/// 15 000 would take hours) — unless the graph is complete, which has a closed form.
+pub const AUTO_LINKS: usize = 6_000;
+
+/// Designs weights for `candidate` with `method` and default options, choosing what works at
+/// the size given: with [`Method::Sdp`], a candidate set of more than [`AUTO_LINKS`] links (not
+/// a complete graph) is designed on the subgraph of each agent's `k` nearest candidate
+/// neighbours — `k = D + 2` first, two more while the subgraph is not universally rigid (or not
+/// connected) and stays within [`AUTO_LINKS`] — and, if no such subgraph is universally rigid, by the Yang
+/// construction. A stress of a subgraph is a stress of the candidate graph (the other links
+/// weigh zero); [`Design::note`] says what was done. `sdp::design` runs the SDP on any set up
+/// to [`MAX_LINKS`].
 ///
 /// # Errors
 /// See [`sdp::design`], [`yang::design`], [`sparse::design`].
 pub fn design(candidate: &Candidate, method: Method) -> Result<Design, DesignError> {
     match method {
-        Method::Sdp => sdp::design(candidate, &SdpOptions::default()),
+        Method::Sdp => {
+            let n = candidate.config.len();
+            let links = crate::graph::Graph::new(n, &candidate.links)?.links().len();
+            if links <= AUTO_LINKS || links == n * n.saturating_sub(1) / 2 {
+                return sdp::design(candidate, &SdpOptions::default());
+            }
+            sdp_on_nearest(candidate, links)
+        }
         Method::Yang => yang::design(candidate),
         Method::Sparse => sparse::design(candidate, &SparseOptions::default()),
     }
+}
+
+/// The links of `candidate` between each agent and its `k` nearest candidate neighbours
+/// (undirected, sorted, each once).
+pub fn nearest_candidate_links(candidate: &Candidate, k: usize) -> Vec<(usize, usize)> {
+    let n = candidate.config.len();
+    let mut nbrs: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for &(i, j) in &candidate.links {
+        if i != j && i < n && j < n {
+            nbrs[i].push(j);
+            nbrs[j].push(i);
+        }
+    }
+    let dist2 = |a: usize, b: usize| -> f64 {
+        candidate.config[a]
+            .iter()
+            .zip(&candidate.config[b])
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum()
+    };
+    let mut out = std::collections::BTreeSet::new();
+    for (i, nb) in nbrs.iter_mut().enumerate() {
+        nb.sort_unstable();
+        nb.dedup();
+        nb.sort_by(|&a, &b| dist2(i, a).total_cmp(&dist2(i, b)).then(a.cmp(&b)));
+        for &j in nb.iter().take(k) {
+            out.insert((i.min(j), i.max(j)));
+        }
+    }
+    out.into_iter().collect()
+}
+
+/// [`design`]'s SDP on nearest-neighbour subgraphs of a large candidate set, then Yang.
+fn sdp_on_nearest(candidate: &Candidate, links: usize) -> Result<Design, DesignError> {
+    // D + 2 neighbours: what trilateration candidates give (K = 4 in 2-D at N = 1 000 designs
+    // with λ_max/λ_min ≈ 2 250); two more per refusal.
+    let step = 2;
+    let mut k = candidate.dim + 2;
+    let mut last_refusal = None;
+    loop {
+        let sub_links = nearest_candidate_links(candidate, k);
+        if sub_links.len() > AUTO_LINKS {
+            break;
+        }
+        let sub = Candidate {
+            links: sub_links,
+            ..candidate.clone()
+        };
+        match sdp::design(&sub, &SdpOptions::default()) {
+            Ok(mut d) => {
+                d.note = Some(format!(
+                    "{links} candidate links are more than the interior-point design takes in \
+                     reasonable time ({AUTO_LINKS}): designed on the {} links between each agent \
+                     and its {k} nearest candidate neighbours",
+                    sub.links.len()
+                ));
+                d.candidate_links = candidate.links.len();
+                return Ok(d);
+            }
+            Err(DesignError::NotUniversallyRigid(why)) => {
+                last_refusal = Some(why);
+                k += step;
+            }
+            Err(DesignError::Graph(why)) => {
+                last_refusal = Some(why.to_string());
+                k += step;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    let mut d = yang::design(candidate)?;
+    d.note = Some(format!(
+        "{links} candidate links are more than the interior-point design takes in reasonable \
+         time ({AUTO_LINKS}), and no nearest-neighbour subgraph within that size is universally \
+         rigid{}: designed by the Yang construction instead",
+        last_refusal.map_or(String::new(), |w| format!(" (the last: {w})"))
+    ));
+    Ok(d)
 }
 
 /// Orthonormal basis (columns) of the orthogonal complement of the column space of `a`
@@ -765,6 +867,7 @@ pub(crate) fn finish(
         candidate_links: candidate.links.len(),
         solver,
         gap,
+        note: None,
     })
 }
 
