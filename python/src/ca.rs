@@ -8,6 +8,8 @@ use numpy::{PyArray1, PyArray3, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArr
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+use crate::flat;
+
 /// The filters and their model, for one dimension D.
 struct Bank<const D: usize> {
     batch: CaBatch<D>,
@@ -36,40 +38,28 @@ fn err(msg: String) -> PyErr {
     PyValueError::new_err(msg)
 }
 
-/// The entries of `a` (shape checked against `want`), finite.
-fn values(a: &PyReadonlyArrayDyn<'_, f64>, what: &str, want: &[usize]) -> PyResult<Vec<f64>> {
-    if a.shape() != want {
-        return Err(err(format!(
-            "{what}: expected shape {want:?}, got {:?}",
-            a.shape()
-        )));
-    }
-    let v: Vec<f64> = a.as_array().iter().copied().collect();
-    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(err(format!("{what}: entry {i} is not finite")));
-    }
-    Ok(v)
-}
-
-/// Whether the row-major `n × n` matrix `m` is symmetric (to 1e-12 relative) and positive
-/// definite (a Cholesky factorisation exists).
-fn spd(m: &[f64], n: usize) -> bool {
-    let a = DMatrix::from_row_slice(n, n, m);
-    let scale = a.amax().max(f64::MIN_POSITIVE);
-    let sym = (0..n).all(|i| (0..i).all(|j| (a[(i, j)] - a[(j, i)]).abs() <= 1e-12 * scale));
-    sym && a.cholesky().is_some()
-}
-
-/// Whether the row-major `n × n` matrix `m` is symmetric positive semidefinite (eigenvalues
-/// ≥ −1e-12 · max |entry|).
-fn spsd(m: &[f64], n: usize) -> bool {
+/// The row-major `n × n` matrix `m`, if it is symmetric to 1e-12 relative.
+fn symmetric(m: &[f64], n: usize) -> Option<DMatrix<f64>> {
     let a = DMatrix::from_row_slice(n, n, m);
     let scale = a.amax();
-    let sym = (0..n).all(|i| (0..i).all(|j| (a[(i, j)] - a[(j, i)]).abs() <= 1e-12 * scale));
-    sym && a
-        .symmetric_eigenvalues()
-        .iter()
-        .all(|&l| l >= -1e-12 * scale)
+    (0..n)
+        .all(|i| (0..i).all(|j| (a[(i, j)] - a[(j, i)]).abs() <= 1e-12 * scale))
+        .then_some(a)
+}
+
+/// Whether `m` is symmetric positive definite (a Cholesky factorisation exists).
+fn spd(m: &[f64], n: usize) -> bool {
+    symmetric(m, n).is_some_and(|a| a.cholesky().is_some())
+}
+
+/// Whether `m` is symmetric positive semidefinite (eigenvalues ≥ −1e-12 · max |entry|).
+fn spsd(m: &[f64], n: usize) -> bool {
+    symmetric(m, n).is_some_and(|a| {
+        let scale = a.amax();
+        a.symmetric_eigenvalues()
+            .iter()
+            .all(|&l| l >= -1e-12 * scale)
+    })
 }
 
 impl<const D: usize> Bank<D> {
@@ -181,10 +171,10 @@ impl CaBank {
         }
         let (b, d) = (s[0], s[2]);
         let n = 3 * d;
-        let x = values(&x0, "x0", &[b, 3, d])?;
+        let x = flat(&x0, "x0", &[b, 3, d])?;
         let p_shared = p0.shape() == [n, n];
         let p_want: Vec<usize> = if p_shared { vec![n, n] } else { vec![b, n, n] };
-        let p = values(&p0, "P0", &p_want)?;
+        let p = flat(&p0, "P0", &p_want)?;
         for e in 0..if p_shared { 1 } else { b } {
             if !spsd(&p[e * n * n..(e + 1) * n * n], n) {
                 return Err(err(format!(
@@ -199,7 +189,7 @@ impl CaBank {
         }
         let r_shared = r.shape() == [d, d];
         let r_want: Vec<usize> = if r_shared { vec![d, d] } else { vec![b, d, d] };
-        let rv = values(&r, "R", &r_want)?;
+        let rv = flat(&r, "R", &r_want)?;
         for e in 0..if r_shared { 1 } else { b } {
             if !spd(&rv[e * d * d..(e + 1) * d * d], d) {
                 return Err(err(format!(
