@@ -307,7 +307,8 @@ impl PyRes {
                 .map_err(value_err)?;
             st.write(
                 "sweep_metrics.csv",
-                edgekf_io::sweep_metrics_csv(sw).as_bytes(),
+                edgekf_io::sweep_metrics_csv(sw, self.sc.sweep().and_then(|s| s.series.as_deref()))
+                    .as_bytes(),
             )
             .map_err(value_err)?;
         }

@@ -610,7 +610,10 @@ fn stage_outputs(
 ) -> Result<()> {
     if let Some(sw) = extra.sweep {
         st.write("summary.csv", io::summary_csv(sw).as_bytes())?;
-        st.write("sweep_metrics.csv", io::sweep_metrics_csv(sw).as_bytes())?;
+        st.write(
+            "sweep_metrics.csv",
+            io::sweep_metrics_csv(sw, sc.sweep().and_then(|s| s.series.as_deref())).as_bytes(),
+        )?;
     }
     edgekf_io::stage_tables(st, sc, res)?;
     st.write(

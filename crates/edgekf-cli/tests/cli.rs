@@ -452,3 +452,86 @@ fn smallest_scenario_runs_and_oversized_studies_are_refused() {
         assert!(!dir.join("big").exists());
     }
 }
+
+/// `sweep.series` keeps in `sweep_metrics.csv` exactly the rows of the listed metrics (the
+/// same bytes as without it, the other rows left out); `summary.csv` does not change; a series
+/// that names an unknown metric, or leaves out one a per-value figure draws, is refused.
+#[test]
+fn sweep_series_keeps_the_listed_metrics_and_nothing_else() {
+    let shipped = fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/garkf-fig11.toml"),
+    )
+    .unwrap();
+    let line = "series = [\"tracking_error\"]";
+    assert!(shipped.contains(line), "the shipped Fig. 11 keeps δ only");
+    let dir = tmp("series");
+    let run = |name: &str, text: &str| {
+        let sc = dir.join(format!("{name}.toml"));
+        fs::write(&sc, text).unwrap();
+        let out = dir.join(name);
+        let o = edgekf(&[
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--steps",
+            "60",
+            "--runs",
+            "2",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let kept = run("kept", &shipped);
+    let all = run("all", &shipped.replace(line, ""));
+    let read = |d: &Path, f: &str| fs::read_to_string(d.join(f)).unwrap();
+    assert_eq!(read(&kept, "summary.csv"), read(&all, "summary.csv"));
+    assert_eq!(read(&kept, "metrics.csv"), read(&all, "metrics.csv"));
+    let (k, a) = (
+        read(&kept, "sweep_metrics.csv"),
+        read(&all, "sweep_metrics.csv"),
+    );
+    let metric = |l: &&str| l.split(',').nth(5).unwrap().to_string();
+    let expect: Vec<&str> = a
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| *i == 0 || metric(l) == "tracking_error")
+        .map(|(_, l)| l)
+        .collect();
+    assert_eq!(k.lines().collect::<Vec<_>>(), expect);
+    assert!(a.lines().skip(1).any(|l| metric(&l) != "tracking_error"));
+    assert!(
+        expect.len() > 1 + 6 * 3,
+        "every value and estimator keeps δ"
+    );
+
+    let e = fails(
+        "series-unknown",
+        &shipped.replace(line, "series = [\"tracking_eror\"]"),
+        &[],
+    );
+    assert!(
+        e.contains("sweep.series") && e.contains("tracking_eror"),
+        "{e}"
+    );
+    let e = fails(
+        "series-twice",
+        &shipped.replace(line, "series = [\"psi\", \"psi\"]"),
+        &[],
+    );
+    assert!(e.contains("sweep.series") && e.contains("twice"), "{e}");
+    let fig8 = fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/garkf-fig8.toml"),
+    )
+    .unwrap();
+    let e = fails(
+        "series-not-drawn",
+        &fig8.replace(", \"theta_trace_max\"]", "]"),
+        &[],
+    );
+    assert!(
+        e.contains("plots[0].band") && e.contains("theta_trace_max"),
+        "{e}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}

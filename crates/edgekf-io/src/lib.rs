@@ -235,11 +235,20 @@ impl Provenance {
 /// value, e.g. ψ before the agent's first feasible RAL: it is left out of the mean and std, and a
 /// step no run defines has no row); mean and std (ddof = 1) across runs, reduced in run order.
 pub fn metrics_csv(res: &Results) -> String {
-    let runs = res.runs.len();
     let mut s = String::with_capacity(res.estimators.len() * res.steps.len() * 5 * 64);
     s.push_str("estimator,step,time,metric,mean,std\n");
+    metric_rows(&mut s, res, "", |_| true);
+    s
+}
+
+/// The rows of `metrics.csv` for the metrics `keep` accepts, each after `prefix`.
+fn metric_rows(s: &mut String, res: &Results, prefix: &str, keep: impl Fn(&str) -> bool) {
+    let runs = res.runs.len();
     for e in &res.estimators {
         for (m, metric) in e.metrics.iter().enumerate() {
+            if !keep(metric) {
+                continue;
+            }
             let ser = edgekf::sim::Series::of(&e.values[m], runs, e.valid);
             for (k, &step) in res.steps.iter().take(e.valid).enumerate() {
                 // A quantity no run defines at this step (ψ before any feasible RAL, or
@@ -249,7 +258,7 @@ pub fn metrics_csv(res: &Results) -> String {
                 }
                 let _ = writeln!(
                     s,
-                    "{},{step},{},{metric},{},{}",
+                    "{prefix}{},{step},{},{metric},{},{}",
                     e.label,
                     step as f64 * res.dt,
                     ser.mean[k],
@@ -258,7 +267,6 @@ pub fn metrics_csv(res: &Results) -> String {
             }
         }
     }
-    s
 }
 
 /// `summary.csv` of a sweep (DESIGN.md contract): `estimator,parameter,value,metric,mean,std`,
@@ -278,14 +286,15 @@ pub fn summary_csv(sw: &SweepResults) -> String {
 }
 
 /// `sweep_metrics.csv`: every value's metrics over time,
-/// `parameter,value,estimator,step,time,metric,mean,std` (the rows of `metrics.csv` per value).
-pub fn sweep_metrics_csv(sw: &SweepResults) -> String {
+/// `parameter,value,estimator,step,time,metric,mean,std` (the rows of `metrics.csv` per value),
+/// for the metrics of `series` (the scenario's `sweep.series`; `None`: all).
+pub fn sweep_metrics_csv(sw: &SweepResults, series: Option<&[String]>) -> String {
     let mut s = String::from("parameter,value,estimator,step,time,metric,mean,std\n");
     for p in &sw.points {
-        let body = metrics_csv(&p.results);
-        for line in body.lines().skip(1) {
-            let _ = writeln!(s, "{},{},{line}", sw.parameter, p.label);
-        }
+        let prefix = format!("{},{},", sw.parameter, p.label);
+        metric_rows(&mut s, &p.results, &prefix, |m| {
+            series.map_or(true, |keep| keep.iter().any(|k| k == m))
+        });
     }
     s
 }

@@ -373,6 +373,11 @@ pub struct SweepSpec {
     /// When a run counts as stable (then `stable_share` is reported).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stable: Option<StableSpec>,
+    /// The metrics whose time series `sweep_metrics.csv` keeps for every value (default: all
+    /// of them; `[]`: none, only the header). `summary.csv` and the figures are computed from
+    /// every metric either way; a figure that draws the values' series needs its metrics here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub series: Option<Vec<String>>,
 }
 
 /// A figure to draw from the results (the CLI draws; the library only carries the request).

@@ -353,8 +353,34 @@ pub(super) fn check(sc: &Scenario, registry: &Registry) -> Result<(), ScenarioEr
             ));
         }
     }
+    if let Some(series) = &spec.series {
+        for (i, m) in series.iter().enumerate() {
+            if series[..i].contains(m) {
+                return Err(err(
+                    &key("sweep.series"),
+                    format!("`{m}` is listed twice; list each metric once"),
+                ));
+            }
+            known(sc, &key("sweep.series"), m)?;
+        }
+    }
     sc.sweep_points_in(registry)?;
     Ok(())
+}
+
+/// A figure that draws the sweep's values over time needs their series on disk: with a
+/// `sweep.series`, each metric it draws must be listed there.
+fn in_series(sc: &Scenario, key: &str, metric: &str) -> Result<(), ScenarioError> {
+    match sc.sweep().and_then(|s| s.series.as_ref()) {
+        Some(series) if !series.iter().any(|m| m == metric) => Err(err(
+            key,
+            format!(
+                "draws `{metric}` for every sweep value, but `sweep.series` does not keep it; \
+                 add it to `sweep.series`"
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 fn known(sc: &Scenario, key: &str, metric: &str) -> Result<(), ScenarioError> {
@@ -402,6 +428,13 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
                 if band == "min-max" {
                     known(sc, &format!("{key}.band"), &format!("{m}_min"))?;
                     known(sc, &format!("{key}.band"), &format!("{m}_max"))?;
+                }
+                if columns == "points" || series == "points" {
+                    in_series(sc, &format!("{key}.rows"), m)?;
+                    if band == "min-max" {
+                        in_series(sc, &format!("{key}.band"), &format!("{m}_min"))?;
+                        in_series(sc, &format!("{key}.band"), &format!("{m}_max"))?;
+                    }
                 }
             }
             if !["single", "points"].contains(&columns.as_str()) {
