@@ -7,6 +7,7 @@
 //!   run), `w = C_Q ξ` with the Kronecker factor, the shared RKF gains (Joseph 2 × 2 per edge,
 //!   frozen once converged), the mean updates, the leaders' distance law and the followers'
 //!   affine law, the move, and ε² at the reported steps — nothing else;
+//! - the draws alone (the floor of any implementation that draws the same normals);
 //! - the engine running `rkf` alone, and the whole Fig. 4a estimator set.
 //!
 //! The target: the engine's RKF within 1.5× of the minimal loop.
@@ -179,6 +180,29 @@ fn minimal(sc: &Scenario) -> f64 {
     check
 }
 
+/// The draws alone: per step and run the minimal loop's M·D measurement-mean and N·D process
+/// normals, summed so that they are not optimised away. Any implementation that draws the same
+/// randomness with the same generator costs at least this per agent-step.
+fn draws_only(sc: &Scenario) -> f64 {
+    const D: usize = 2;
+    let m = sc.model();
+    let (n, runs) = (m.agents, sc.runs());
+    let per_run = (m.num_edges() + n) * D;
+    let mut rngs: Vec<Xoshiro256PlusPlus> = (0..runs)
+        .map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64))
+        .collect();
+    let mut check = 0.0;
+    for _ in 0..sc.steps() {
+        for rng in &mut rngs {
+            for _ in 0..per_run {
+                let x: f64 = rng.sample(StandardNormal);
+                check += x;
+            }
+        }
+    }
+    check
+}
+
 fn main() {
     let args: Vec<usize> = std::env::args()
         .skip(1)
@@ -199,6 +223,14 @@ fn main() {
     let c = minimal(&sc);
     let base = per(t.elapsed().as_secs_f64(), &sc, 1);
     println!("minimal SoA loop (rkf)       {base:7.1}   (checksum {c:.3e})");
+    let t = Instant::now();
+    let c = draws_only(&sc);
+    let draws = per(t.elapsed().as_secs_f64(), &sc, 1);
+    let m = sc.model();
+    println!(
+        "draws alone ({} normals)      {draws:7.1}   (checksum {c:.3e}; the floor of any loop drawing them)",
+        (m.num_edges() + m.agents) * 2 / m.agents
+    );
     for set in [
         &["rkf"][..],
         &["oracle"],
