@@ -1,6 +1,9 @@
 //! The command line as a user meets it: bad input ends with a clear message naming the file, the
 //! key and the problem, a non-zero exit code, and no output; good input round-trips exactly.
 
+#[path = "scratch/mod.rs"]
+mod scratch;
+use scratch::Scratch;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -12,11 +15,8 @@ fn edgekf(args: &[&str]) -> Output {
         .expect("runs")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("edgekf-cli-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> Scratch {
+    Scratch::new("edgekf-cli", name)
 }
 
 /// A 4-agent square with the stress of its affine dependency (rank N − D − 1 = 1).

@@ -5,6 +5,9 @@
 
 mod whole_program;
 
+#[path = "scratch/mod.rs"]
+mod scratch;
+use scratch::Scratch;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -17,11 +20,8 @@ const BASE: u64 = 0x6564_6765_6b66;
 /// and a case still running at the 10 s limit is a hang, not a big study on a busy machine.
 const MAX_HOURS: f64 = 1e-4;
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("edgekf-fuzz-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new("edgekf-fuzz", name)
 }
 
 #[test]
@@ -33,7 +33,7 @@ fn two_thousand_mutated_runs_end_cleanly() {
         max_hours: MAX_HOURS,
         workers: 4,
         keep: work.join("defects"),
-        work: work.clone(),
+        work: work.to_path_buf(),
     };
     let st = run(&m, &roles, 2_000, &s);
     println!("{}", st.report());

@@ -2,6 +2,9 @@
 //! every figure once), provenance beside the data, a report page per study, and the terminal
 //! summary on stdout.
 
+#[path = "scratch/mod.rs"]
+mod scratch;
+use scratch::Scratch;
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -14,11 +17,8 @@ fn edgekf(args: &[&str]) -> Output {
         .expect("runs")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("edgekf-outputs-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> Scratch {
+    Scratch::new("edgekf-outputs", name)
 }
 
 /// Every file under `dir`, relative, with its size.
