@@ -242,6 +242,16 @@ pub fn sci(v: f64) -> String {
     }
 }
 
+/// A ratio near 1 as `0.9982`; one far from it (an estimator that diverged) in the form of
+/// [`sci`], not as fifty digits.
+pub fn ratio(v: f64) -> String {
+    if v.is_finite() && (1e-3..1e4).contains(&v.abs()) {
+        format!("{v:.4}")
+    } else {
+        sci(v)
+    }
+}
+
 /// The summary as rows of cells: a header, then one row per estimator (label, status, metric
 /// columns, the consistency ratio and the final-window Procrustes error when they apply).
 pub fn cells(s: &Summary) -> Vec<Vec<String>> {
@@ -264,10 +274,7 @@ pub fn cells(s: &Summary) -> Vec<Vec<String>> {
         };
         r.extend(cols.iter().map(|c| get(&l.metrics, c)));
         if s.has_consistency() {
-            r.push(
-                l.consistency
-                    .map_or_else(|| "–".into(), |v| format!("{v:.4}")),
-            );
+            r.push(l.consistency.map_or_else(|| "–".into(), ratio));
         }
         if s.has_floor() {
             r.push(get(&l.last, "procrustes"));
@@ -320,6 +327,16 @@ pub fn table(s: &Summary) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ratios_far_from_one_are_printed_short() {
+        assert_eq!(ratio(0.99821), "0.9982");
+        assert_eq!(ratio(233.17391), "233.1739");
+        assert_eq!(ratio(7.1187e50), "7.1187e50");
+        assert_eq!(ratio(2.5e-7), "2.5000e-7");
+        assert_eq!(ratio(0.0), "0");
+        assert_eq!(ratio(f64::INFINITY), "–");
+    }
 
     #[test]
     fn columns_follow_the_metrics_order_with_units_and_the_readme_ratios() {

@@ -313,7 +313,8 @@ fn summary(
     let y_axis = if log_y {
         Axis::log(yl, yu)
     } else if share {
-        Axis::linear(yl, yu).with_range(0.0, 1.0)
+        // A little room beyond 0 and 1, so that a share of 1 is not drawn on the frame.
+        Axis::linear(yl, yu).with_range(-0.03, 1.03)
     } else {
         Axis::linear(yl, yu)
     };
@@ -354,17 +355,30 @@ fn summary(
             };
             let mut c = Curve::new(name, x.clone(), y.clone())
                 .with_style(Style::line().marker(Marker::new(shapes[s_idx % shapes.len()], 9.0)));
-            if !share {
-                let lo = vals.iter().map(|(m, s)| m - s.max(0.0)).collect();
-                let hi = vals.iter().map(|(m, s)| m + s.max(0.0)).collect();
-                c = c.with_band(lo, hi);
-            }
+            // A share: ±1 standard error of the share (the per-run std / √runs), within [0, 1];
+            // a time average: ±1σ over the runs.
+            let scale = if share {
+                (ssw.base.runs.len().max(1) as f64).sqrt()
+            } else {
+                1.0
+            };
+            let lo = vals
+                .iter()
+                .map(|(m, s)| m - s.max(0.0) / scale)
+                .map(|v| if share { v.max(0.0) } else { v })
+                .collect();
+            let hi = vals
+                .iter()
+                .map(|(m, s)| m + s.max(0.0) / scale)
+                .map(|v| if share { v.min(1.0) } else { v })
+                .collect();
+            c = c.with_band(lo, hi);
             panel.curves.push(c);
         }
     }
     let n = sw.base.runs.len();
     let mut note = if share {
-        format!("share of {n} runs per value")
+        format!("share of {n} runs per value, band ±1 standard error (std / √{n})")
     } else {
         format!("mean ± 1σ over {n} runs of the per-run time average")
     };

@@ -21,8 +21,8 @@ pub use framework_file::FRAMEWORK_SCHEMA;
 pub use resolved::{Resolved, SCHEMA};
 pub use spec::{
     CommSpec, ControlSpec, DepartureSpec, EstimatorEntry, FaultSpec, FeedbackSpec, FrameworkSpec,
-    InitSpec, KeyframesSpec, LawSpec, LeaderSpec, ManeuverSpec, MetricsSpec, NoiseSpec, PlotSpec,
-    RandomDepartureSpec, ScenarioSpec, SimSpec, StableSpec, SweepSpec,
+    InitAround, InitSpec, KeyframesSpec, LawSpec, LeaderSpec, ManeuverSpec, MetricsSpec, NoiseSpec,
+    PlotSpec, RandomDepartureSpec, ScenarioSpec, SimSpec, StableSpec, SweepSpec,
 };
 pub use sweep::SweepPoint;
 
@@ -130,6 +130,7 @@ pub struct Scenario {
     description: String,
     model: Model,
     init_mean: Vec<f64>,
+    init_around: InitAround,
     steps: usize,
     runs: usize,
     seed: u64,
@@ -174,6 +175,7 @@ struct Draft<'a> {
     allow_divergence: bool,
     init_mean: Vec<f64>,
     init_cov: DMatrix<f64>,
+    init_around: InitAround,
     q: DMatrix<f64>,
     r: Vec<DMatrix<f64>>,
     control: ControlSpec,
@@ -282,6 +284,7 @@ impl Scenario {
             allow_divergence: s.allow_divergence,
             init_mean,
             init_cov,
+            init_around: spec.init.around,
             q,
             r,
             control: spec.control.clone(),
@@ -386,6 +389,7 @@ impl Scenario {
             allow_divergence: r.allow_divergence.unwrap_or(false),
             init_mean: r.init_mean.clone(),
             init_cov,
+            init_around: r.init_around,
             q,
             r: meas,
             control,
@@ -590,6 +594,7 @@ impl Scenario {
             description: d.description,
             model,
             init_mean: d.init_mean,
+            init_around: d.init_around,
             steps: d.steps,
             runs: d.runs,
             seed: d.seed,
@@ -640,6 +645,7 @@ impl Scenario {
             samples_per_step: self.samples,
             init_mean: self.init_mean.clone(),
             init_cov: rows(&self.model.p),
+            init_around: self.init_around,
             process_cov: rows(&self.model.q),
             meas_cov: self.model.r.iter().map(rows).collect(),
             estimators: self.estimators.iter().map(|e| e.label.clone()).collect(),
@@ -810,6 +816,10 @@ impl Scenario {
     /// μ of the initial positions.
     pub fn init_mean(&self) -> &[f64] {
         &self.init_mean
+    }
+    /// What [`Self::init_mean`] is relative to.
+    pub fn init_around(&self) -> InitAround {
+        self.init_around
     }
     /// The estimators.
     pub fn estimators(&self) -> &[EstimatorDef] {

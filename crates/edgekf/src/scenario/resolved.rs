@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::spec::{
-    CommSpec, ControlSpec, FaultSpec, ManeuverSpec, MetricsSpec, PlotSpec, SweepSpec,
+    CommSpec, ControlSpec, FaultSpec, InitAround, ManeuverSpec, MetricsSpec, PlotSpec, SweepSpec,
 };
 
 /// Schema tag of [`Resolved`].
@@ -45,6 +45,10 @@ pub struct Resolved {
     pub init_mean: Vec<f64>,
     /// P.
     pub init_cov: Vec<Vec<f64>>,
+    /// What `init_mean` is relative to (default `"origin"`; `"target"`: each agent's place in
+    /// the formation).
+    #[serde(default, skip_serializing_if = "InitAround::is_origin")]
+    pub init_around: InitAround,
     /// Q (ND × ND).
     pub process_cov: Vec<Vec<f64>>,
     /// R_ij per directed edge.

@@ -106,7 +106,8 @@ impl Default for SimSpec {
     }
 }
 
-/// Initial positions `z_1^i ~ N(μ, P)` (i.i.d. over agents).
+/// Initial positions `z_1^i ~ N(μ, P)` (i.i.d. over agents), or around each agent's place in
+/// the formation, `z_1^i ~ N(z*_i + μ, P)`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct InitSpec {
@@ -114,6 +115,28 @@ pub struct InitSpec {
     pub mean: Option<Vec<f64>>,
     /// P (default I).
     pub cov: Option<Vec<Vec<f64>>>,
+    /// What μ is relative to (default `"origin"`).
+    pub around: InitAround,
+}
+
+/// What the initial positions are drawn around.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InitAround {
+    /// Every agent around μ (the thesis's random start).
+    #[default]
+    Origin,
+    /// Agent i around `z*_i + μ`: its target at step 1 with a `[maneuver]`, else its point of
+    /// the configuration — a formation that starts converged up to P (Li & Rajan Fig. 13:
+    /// agents depart from a converged formation).
+    Target,
+}
+
+impl InitAround {
+    /// The default (left out of resolved scenarios).
+    pub fn is_origin(&self) -> bool {
+        *self == Self::Origin
+    }
 }
 
 /// Noise (thesis §4.2.3).

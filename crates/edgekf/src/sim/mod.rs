@@ -37,7 +37,7 @@ use rayon::prelude::*;
 
 use crate::control::{ControlInput, Controller, LeaderMode};
 use crate::estimate::{Estimator, Step};
-use crate::scenario::{Feedback, Scenario};
+use crate::scenario::{Feedback, InitAround, Scenario};
 pub use cost::{cost, StudyCost};
 use faults::FaultStage;
 use metrics::{metrics_for, Measure, Metric};
@@ -519,6 +519,21 @@ fn run_chunk(
                     z0[(i * d + a) * runs..(i * d + a + 1) * runs]
                         .fill(tg.now.positions[i * d + a]);
                 }
+            }
+        }
+    }
+    if sc.init_around() == InitAround::Target {
+        // Around each agent's place: its target at step 1, else its configuration point
+        // (the draws are those of a start around the origin, shifted).
+        let place = targets
+            .as_ref()
+            .map_or(fw.config(), |tg| &tg.now.positions[..]);
+        for (row, &p) in place.iter().enumerate() {
+            if target_leaders && traj.is_some() && leaders.contains(&(row / d)) {
+                continue; // already on the target
+            }
+            for v in &mut z0[row * runs..(row + 1) * runs] {
+                *v += p;
             }
         }
     }
