@@ -24,6 +24,10 @@ pub struct BenchArgs {
     /// Also time `reproduce all` (writes into a temporary directory).
     #[arg(long)]
     reproduce: bool,
+    /// Also time the GA-RKF study (Li & Rajan Fig. 11 at λ = 0.4 without its sweep: the hexagon,
+    /// the 60 s maneuver, `--runs` runs): none, rkf-ca and garkf alone and together.
+    #[arg(long)]
+    garkf: bool,
 }
 
 /// Runs the benchmark and prints a table.
@@ -78,6 +82,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             wall / agent_steps * 1e9
         );
     }
+    if args.garkf {
+        garkf(args, &pool)?;
+    }
     if args.reproduce {
         let dir = std::env::temp_dir().join(format!("edgekf-bench-{}", std::process::id()));
         let t = Instant::now();
@@ -93,5 +100,51 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         );
         let _ = std::fs::remove_dir_all(&dir);
     }
+    Ok(())
+}
+
+/// The GA-RKF speed (issue target: the three together ≥ 10⁶ agent-steps/s on 2 cores). An
+/// agent-step is one agent of one run advancing one step in the study, whatever the number of
+/// estimators (each estimator closes its own loop).
+fn garkf(args: &BenchArgs, pool: &rayon::ThreadPool) -> Result<()> {
+    let text = registry::find("garkf-fig11").expect("registered").text;
+    let mut base: ScenarioSpec = toml::from_str(text)?;
+    base.plots.clear();
+    base.sweep = None;
+    base.sim.runs = args.runs;
+    let all = base.estimators.clone();
+    println!(
+        "\nGA-RKF study (Li & Rajan Fig. 11 at λ = 0.4: hexagon, N = 10, 60 s maneuver), {} runs × {} steps, {} thread(s)",
+        base.sim.runs,
+        base.sim.steps,
+        pool.current_num_threads()
+    );
+    println!(
+        "{:<22} {:>10} {:>16} {:>14}",
+        "estimators", "wall [s]", "agent-steps/s", "ns/agent-step"
+    );
+    let mut sets: Vec<(String, Vec<EstimatorEntry>)> = all
+        .iter()
+        .map(|e| {
+            let kind = e.0["kind"].as_str().unwrap_or("?").to_string();
+            (kind, vec![e.clone()])
+        })
+        .collect();
+    sets.push(("none + rkf-ca + garkf".into(), all));
+    for (label, set) in sets {
+        let mut spec = base.clone();
+        spec.estimators = set;
+        let sc = edgekf::scenario::Scenario::from_spec(&spec, None)?;
+        let t = Instant::now();
+        pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
+        let wall = t.elapsed().as_secs_f64();
+        let agent_steps = (sc.framework().agents() * sc.runs() * sc.steps()) as f64;
+        println!(
+            "{label:<22} {wall:>10.3} {:>16.3e} {:>14.1}",
+            agent_steps / wall,
+            wall / agent_steps * 1e9
+        );
+    }
+    println!("target (issue 10): none + rkf-ca + garkf ≥ 1.000e6 agent-steps/s on 2 cores");
     Ok(())
 }

@@ -305,32 +305,22 @@ struct Work {
     tmp: Box<Tmp>,
 }
 
-/// Intermediate lanes of [`predict_lanes`] and [`correct_lanes`].
+/// Intermediate lanes of [`correct_lanes`].
 #[derive(Debug, Clone)]
 struct Tmp {
-    x: [[Lane; 3]; 3],
     s: [[Lane; 3]; 3],
-    rr: [[Lane; 3]; 3],
     si: [[Lane; 3]; 3],
     k: [[Lane; 3]; 9],
     wm: [[Lane; 3]; 9],
-    ka: Lane,
-    kr: Lane,
-    v: Lane,
 }
 
 impl Tmp {
     fn new() -> Box<Self> {
         Box::new(Self {
-            x: [[[0.0; TILE]; 3]; 3],
             s: [[[0.0; TILE]; 3]; 3],
-            rr: [[[0.0; TILE]; 3]; 3],
             si: [[[0.0; TILE]; 3]; 3],
             k: [[[0.0; TILE]; 3]; 9],
             wm: [[[0.0; TILE]; 3]; 9],
-            ka: [0.0; TILE],
-            kr: [0.0; TILE],
-            v: [0.0; TILE],
         })
     }
 }
@@ -461,7 +451,7 @@ impl<const D: usize> CaBatch<D> {
         let runs = self.runs;
         for (t, tile) in self.cov.iter_mut().enumerate() {
             let w = TILE.min(runs - t * TILE);
-            predict_tile::<D>(tile, &mut self.work.out, &mut self.work.tmp, model, w);
+            predict_tile::<D>(tile, &mut self.work.out, model, w);
             std::mem::swap(tile, &mut self.work.out);
         }
     }
@@ -571,7 +561,6 @@ impl<const D: usize> CaBatch<D> {
 fn predict_tile<const D: usize>(
     p: &[Lane; MAXP],
     out: &mut [Lane; MAXP],
-    tmp: &mut Tmp,
     model: &CaModel<D>,
     width: usize,
 ) {
@@ -579,10 +568,10 @@ fn predict_tile<const D: usize>(
     {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { predict_lanes_avx2::<D>(p, out, tmp, model, width) };
+            return unsafe { predict_lanes_avx2::<D>(p, out, model, width) };
         }
     }
-    predict_lanes::<D>(p, out, tmp, model, width);
+    predict_lanes::<D>(p, out, model, width);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -590,11 +579,10 @@ fn predict_tile<const D: usize>(
 unsafe fn predict_lanes_avx2<const D: usize>(
     p: &[Lane; MAXP],
     out: &mut [Lane; MAXP],
-    tmp: &mut Tmp,
     model: &CaModel<D>,
     width: usize,
 ) {
-    predict_lanes::<D>(p, out, tmp, model, width);
+    predict_lanes::<D>(p, out, model, width);
 }
 
 /// [`correct_lanes`] compiled for AVX2 when the CPU has it (same bits).
@@ -640,54 +628,60 @@ unsafe fn correct_lanes_avx2<const D: usize>(
 fn predict_lanes<const D: usize>(
     p: &[Lane; MAXP],
     out: &mut [Lane; MAXP],
-    tmp: &mut Tmp,
     model: &CaModel<D>,
     width: usize,
 ) {
     // The first `width` lanes are used (a chunk of fewer runs than a tile computes no more).
+    // One loop over the lanes per output entry, `X = f B` recomputed in registers inside it
+    // (the same operations in the same order as forming X first): no scratch rows.
     let w = width.min(TILE);
     let n = 3 * D;
     let (h, c) = (model.dt, model.half_dt2);
     let q3 = model.q_block();
-    let x = &mut tmp.x;
     for d1 in 0..D {
         for d2 in d1..D {
             let idx = |i: usize, j: usize| packed_index(n, i * D + d1, j * D + d2);
-            // X = f B (rows).
-            for j in 0..3 {
-                let (b0, b1, b2) = (&p[idx(0, j)][..w], &p[idx(1, j)][..w], &p[idx(2, j)][..w]);
-                let [x0, x1, x2] = &mut *x;
-                let (x0, x1, x2) = (&mut x0[j][..w], &mut x1[j][..w], &mut x2[j][..w]);
-                for l in 0..w {
-                    x0[l] = b0[l] + h * b1[l] + c * b2[l];
-                    x1[l] = b1[l] + h * b2[l];
-                    x2[l] = b2[l];
-                }
-            }
-            // Y = X fᵀ (columns), plus Q on the diagonal pairs; the upper triangle is stored.
+            let b: [[&Lane; 3]; 3] =
+                std::array::from_fn(|i| std::array::from_fn(|j| &p[idx(i, j)]));
             let diag = d1 == d2;
-            for i in 0..3 {
-                let (xi0, xi1, xi2) = (&x[i][0][..w], &x[i][1][..w], &x[i][2][..w]);
-                let qd = |j: usize| if diag { q3[(i, j)] } else { 0.0 };
-                let (q0, q1, q2) = (qd(0), qd(1), qd(2));
-                if !diag || i == 0 {
-                    let o = &mut out[idx(i, 0)][..w];
-                    for l in 0..w {
-                        o[l] = (xi0[l] + h * xi1[l] + c * xi2[l]) + q0;
+            macro_rules! entry {
+                ($i:literal, $j:literal) => {
+                    // Only the upper triangle of a diagonal pair is stored.
+                    if !diag || $i <= $j {
+                        let q = if diag { q3[($i, $j)] } else { 0.0 };
+                        let o = &mut out[idx($i, $j)];
+                        for l in 0..w {
+                            o[l] = fbf::<$i, $j>(&b, l, h, c) + q;
+                        }
                     }
-                }
-                if !diag || i <= 1 {
-                    let o = &mut out[idx(i, 1)][..w];
-                    for l in 0..w {
-                        o[l] = (xi1[l] + h * xi2[l]) + q1;
-                    }
-                }
-                let o = &mut out[idx(i, 2)][..w];
-                for l in 0..w {
-                    o[l] = xi2[l] + q2;
-                }
+                };
             }
+            entry!(0, 0);
+            entry!(0, 1);
+            entry!(0, 2);
+            entry!(1, 0);
+            entry!(1, 1);
+            entry!(1, 2);
+            entry!(2, 0);
+            entry!(2, 1);
+            entry!(2, 2);
         }
+    }
+}
+
+/// Entry `(I, J)` of `f B fᵀ` at lane `l`, `f = [[1, h, c], [0, 1, h], [0, 0, 1]]`: the row
+/// operations `X = f B` first, then the column operations, each sum left to right.
+#[inline(always)]
+fn fbf<const I: usize, const J: usize>(b: &[[&Lane; 3]; 3], l: usize, h: f64, c: f64) -> f64 {
+    let x = |m: usize| match I {
+        0 => b[0][m][l] + h * b[1][m][l] + c * b[2][m][l],
+        1 => b[1][m][l] + h * b[2][m][l],
+        _ => b[2][m][l],
+    };
+    match J {
+        0 => x(0) + h * x(1) + c * x(2),
+        1 => x(1) + h * x(2),
+        _ => x(2),
     }
 }
 
@@ -706,29 +700,17 @@ fn correct_lanes<const D: usize>(
     kout: &mut [Lane; MAXK],
     width: usize,
 ) {
+    // One loop over the lanes per output row, with the sums over the D measurement components
+    // in registers (the component loops unroll: D is a constant): no scratch rows are zeroed or
+    // copied, and the operations are those of the sums written out, in the same order.
     let w = width.min(TILE);
     let n = 3 * D;
-    let m = &m[..w];
-    // S = A + R̃ and R̃ (full D × D), S⁻¹ by the adjugate.
-    let Tmp {
-        s,
-        rr,
-        si,
-        k,
-        wm,
-        ka,
-        kr,
-        v,
-        ..
-    } = tmp;
+    let Tmp { s, si, k, wm, .. } = tmp;
+    // S = A + R̃ (full D × D), S⁻¹ by the adjugate.
     for a in 0..D {
         for b in 0..D {
-            let (pa, ra) = (
-                &p[packed_index(n, a, b)][..w],
-                &r[packed_index(D, a, b)][..w],
-            );
-            rr[a][b][..w].copy_from_slice(ra);
-            let sa = &mut s[a][b][..w];
+            let (pa, ra) = (&p[packed_index(n, a, b)], &r[packed_index(D, a, b)]);
+            let sa = &mut s[a][b];
             for l in 0..w {
                 sa[l] = pa[l] + ra[l];
             }
@@ -738,55 +720,55 @@ fn correct_lanes<const D: usize>(
     // K = P_G S⁻¹ (n × D).
     for a in 0..n {
         for cc in 0..D {
-            let ka = &mut k[a][cc][..w];
-            ka.fill(0.0);
-            for e in 0..D {
-                let (pe, se) = (&p[packed_index(n, a, e)][..w], &si[e][cc][..w]);
-                for l in 0..w {
-                    ka[l] += pe[l] * se[l];
+            let pe: [&Lane; D] = std::array::from_fn(|e| &p[packed_index(n, a, e)]);
+            let se: [&Lane; D] = std::array::from_fn(|e| &si[e][cc]);
+            let ka = &mut k[a][cc];
+            for l in 0..w {
+                let mut acc = 0.0;
+                for e in 0..D {
+                    acc += pe[e][l] * se[e][l];
                 }
+                ka[l] = acc;
             }
         }
     }
     // W = K R̃ − (P_G − K A).
     for a in 0..n {
         for cc in 0..D {
-            ka[..w].fill(0.0);
-            kr[..w].fill(0.0);
-            for e in 0..D {
-                let kae = &k[a][e][..w];
-                let (pec, rec) = (&p[packed_index(n, e, cc)][..w], &rr[e][cc][..w]);
-                for l in 0..w {
-                    ka[l] += kae[l] * pec[l];
-                    kr[l] += kae[l] * rec[l];
-                }
-            }
-            let pac = &p[packed_index(n, a, cc)][..w];
-            let wac = &mut wm[a][cc][..w];
+            let ke: [&Lane; D] = std::array::from_fn(|e| &k[a][e]);
+            let pec: [&Lane; D] = std::array::from_fn(|e| &p[packed_index(n, e, cc)]);
+            let rec: [&Lane; D] = std::array::from_fn(|e| &r[packed_index(D, e, cc)]);
+            let pac = &p[packed_index(n, a, cc)];
+            let wac = &mut wm[a][cc];
             for l in 0..w {
-                wac[l] = kr[l] - (pac[l] - ka[l]);
+                let (mut ka, mut kr) = (0.0, 0.0);
+                for e in 0..D {
+                    ka += ke[e][l] * pec[e][l];
+                    kr += ke[e][l] * rec[e][l];
+                }
+                wac[l] = kr - (pac[l] - ka);
             }
         }
     }
     // Λ = Λ⁻ + Σ_c (W_ac K_bc − K_ac P_bc) where observed, Λ⁻ elsewhere.
     for a in 0..n {
+        let wa: [&Lane; D] = std::array::from_fn(|c| &wm[a][c]);
+        let ka: [&Lane; D] = std::array::from_fn(|c| &k[a][c]);
         for b in a..n {
-            let prior = &p[packed_index(n, a, b)][..w];
-            v[..w].copy_from_slice(prior);
-            for cc in 0..D {
-                let (wac, kbc, kac) = (&wm[a][cc][..w], &k[b][cc][..w], &k[a][cc][..w]);
-                let pbc = &p[packed_index(n, b, cc)][..w];
-                for l in 0..w {
-                    v[l] += wac[l] * kbc[l] - kac[l] * pbc[l];
-                }
-            }
-            let o = &mut out[packed_index(n, a, b)][..w];
+            let prior = &p[packed_index(n, a, b)];
+            let kb: [&Lane; D] = std::array::from_fn(|c| &k[b][c]);
+            let pb: [&Lane; D] = std::array::from_fn(|c| &p[packed_index(n, b, c)]);
+            let o = &mut out[packed_index(n, a, b)];
             for l in 0..w {
-                o[l] = if m[l] { v[l] } else { prior[l] };
+                let mut v = prior[l];
+                for c in 0..D {
+                    v += wa[c][l] * kb[c][l] - ka[c][l] * pb[c][l];
+                }
+                o[l] = if m[l] { v } else { prior[l] };
             }
         }
         for cc in 0..D {
-            let (kac, o) = (&k[a][cc][..w], &mut kout[a * D + cc][..w]);
+            let (kac, o) = (&k[a][cc], &mut kout[a * D + cc]);
             for l in 0..w {
                 o[l] = if m[l] { kac[l] } else { 0.0 };
             }
