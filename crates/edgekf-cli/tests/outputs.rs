@@ -7,7 +7,7 @@ mod scratch;
 use scratch::Scratch;
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn edgekf(args: &[&str]) -> Output {

@@ -292,8 +292,9 @@ pub fn sweep_metrics_csv(sw: &SweepResults, series: Option<&[String]>) -> String
     let mut s = String::from("parameter,value,estimator,step,time,metric,mean,std\n");
     for p in &sw.points {
         let prefix = format!("{},{},", sw.parameter, p.label);
-        metric_rows(&mut s, &p.results, &prefix, |m| {
-            series.map_or(true, |keep| keep.iter().any(|k| k == m))
+        metric_rows(&mut s, &p.results, &prefix, |m| match series {
+            None => true,
+            Some(keep) => keep.iter().any(|k| k == m),
         });
     }
     s
