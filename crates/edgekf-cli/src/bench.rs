@@ -70,17 +70,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         spec.estimators = set;
         spec.sim.steps = args.steps;
         spec.sim.runs = args.runs;
-        let sc = edgekf::scenario::Scenario::from_spec(&spec, None)?;
-        let t = Instant::now();
-        pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
-        let wall = t.elapsed().as_secs_f64();
-        let agent_steps =
-            (sc.framework().agents() * sc.runs() * sc.steps() * sc.estimators().len()) as f64;
-        println!(
-            "{label:<10} {wall:>10.3} {:>16.3e} {:>14.1}",
-            agent_steps / wall,
-            wall / agent_steps * 1e9
-        );
+        time_row(&pool, &spec, &format!("{label:<10}"), true)?;
     }
     if args.garkf {
         garkf(args, &pool)?;
@@ -134,17 +124,34 @@ fn garkf(args: &BenchArgs, pool: &rayon::ThreadPool) -> Result<()> {
     for (label, set) in sets {
         let mut spec = base.clone();
         spec.estimators = set;
-        let sc = edgekf::scenario::Scenario::from_spec(&spec, None)?;
-        let t = Instant::now();
-        pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
-        let wall = t.elapsed().as_secs_f64();
-        let agent_steps = (sc.framework().agents() * sc.runs() * sc.steps()) as f64;
-        println!(
-            "{label:<22} {wall:>10.3} {:>16.3e} {:>14.1}",
-            agent_steps / wall,
-            wall / agent_steps * 1e9
-        );
+        time_row(pool, &spec, &format!("{label:<22}"), false)?;
     }
     println!("target (issue 10): none + rkf-ca + garkf ≥ 1.000e6 agent-steps/s on 2 cores");
+    Ok(())
+}
+
+/// Runs `spec` once and prints a row: `label`, wall time, agent-steps per second and ns per
+/// agent-step — counted per estimator when `per_estimator`, else once for the study.
+fn time_row(
+    pool: &rayon::ThreadPool,
+    spec: &ScenarioSpec,
+    label: &str,
+    per_estimator: bool,
+) -> Result<()> {
+    let sc = edgekf::scenario::Scenario::from_spec(spec, None)?;
+    let t = Instant::now();
+    pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
+    let wall = t.elapsed().as_secs_f64();
+    let estimators = if per_estimator {
+        sc.estimators().len()
+    } else {
+        1
+    };
+    let agent_steps = (sc.framework().agents() * sc.runs() * sc.steps() * estimators) as f64;
+    println!(
+        "{label} {wall:>10.3} {:>16.3e} {:>14.1}",
+        agent_steps / wall,
+        wall / agent_steps * 1e9
+    );
     Ok(())
 }
