@@ -29,7 +29,14 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// One test: the counter is the process's, so the checks run one after the other, with no
+/// other test (nor the harness reporting one) allocating meanwhile.
 #[test]
+fn step_loops_allocate_nothing() {
+    allocations_do_not_grow_with_steps();
+    ca_filters_allocate_nothing_per_step();
+}
+
 fn allocations_do_not_grow_with_steps() {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -53,5 +60,51 @@ fn allocations_do_not_grow_with_steps() {
     assert_eq!(
         short, long,
         "allocations: {short} for 200 steps, {long} for 4000 steps"
+    );
+}
+
+fn ca_filters_allocate_nothing_per_step() {
+    // rkf-ca and garkf (decoupled axes, shared covariances until the first lost link, then
+    // per run) under random link losses, with the metric edge's PCRB.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let count = |steps: usize| {
+        let text = format!(
+            r#"
+name = "ca-alloc"
+estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }}]
+[framework]
+preset = "hexagon"
+[sim]
+dt = 0.01
+steps = {steps}
+runs = 5
+every = {every}
+[faults]
+availability = 0.6
+[metrics]
+edge = [1, 0]
+"#,
+            every = steps / 2
+        );
+        let spec: edgekf::scenario::ScenarioSpec = toml::from_str(&text).unwrap();
+        let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
+        pool.install(|| {
+            let before = ALLOCS.load(Ordering::SeqCst);
+            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
+            let after = ALLOCS.load(Ordering::SeqCst);
+            assert_eq!(res.steps.len(), 3);
+            after - before
+        })
+    };
+    // A first run initialises a process-wide cache once (one allocation); not counted.
+    count(200);
+    let short = count(200);
+    let long = count(2000);
+    assert_eq!(
+        short, long,
+        "allocations: {short} for 200 steps, {long} for 2000 steps"
     );
 }

@@ -25,16 +25,21 @@
 //! [`CaBatch`] holds the filters of one edge for `runs` Monte Carlo runs as a structure of
 //! arrays with the runs innermost: the mean as `3D` rows of `runs`; the covariance as the
 //! `3D(3D+1)/2` unique entries of its upper triangle (row-major packed, [`packed_index`]) stored
-//! by tiles of [`TILE`] = 64 runs, entry `k` of run `t·64 + l` at `cov[t][k][l]`, and the gains
-//! likewise. The kernels work on a whole tile in place: one loop over the tile's runs evaluates
-//! the per-run update in scalar code whose matrix indices are compile-time constants (D is a
-//! const parameter), so it has no bounds checks and vectorises (compiled for AVX2 when the CPU
-//! has it, without fused multiply–add, so the bits are those of the baseline code); the
-//! prediction and the correction write a scratch tile that is then swapped with the stored one
-//! (a pointer swap, no copy). A chunk of fewer runs than a tile computes only its runs. Nothing
-//! allocates per step. Measured in the GA-RKF closed loop (`perf`, 64 runs, one thread, a
-//! shared 2-core AMD EPYC): ≈ 20 ns per edge-run-step for the prediction and ≈ 45 ns for the
-//! Joseph correction (D = 2).
+//! by tiles of [`TILE`] = 64 runs, contiguously, entry `k` of run `t·64 + l` at
+//! `cov[t·np + k][l]` (`np` the packed length: only the lanes in use). The kernels work on one
+//! tile at a time: one loop over the tile's runs evaluates the per-run update in scalar code
+//! whose matrix indices are compile-time constants (D is a const parameter), so it has no
+//! bounds checks and vectorises (compiled for AVX2 when the CPU has it, without fused
+//! multiply–add, so the bits are those of the baseline code); the prediction and the
+//! correction write a scratch tile that is copied back. The scratch, and the gains that the
+//! mean correction reads after the covariance correction, live in a [`CaWork`] that a caller
+//! with many batches (one per directed edge) shares between them, so that it stays in cache
+//! (the methods without the `_in` suffix keep their own). A chunk of fewer runs than a tile
+//! computes only its runs. Nothing allocates per step. Measured in cache (one axis, D = 1:
+//! `report_axis_kernel_timing`): ≈ 2.7 ns per run-step for the prediction, 4.5 ns for the
+//! Joseph correction, 2 ns for the means; streaming 2,450 batches through memory (Fig. 13's
+//! dense graph) the three together cost ≈ 23 ns (`report_many_batches_timing`) — the closed
+//! loop is bound by memory traffic, which is what [`super::rkf_ca::CaEdges`] reduces.
 //!
 //! Structure exploited: `F = f ⊗ I_D` with `f` upper-triangular, so `F Λ Fᵀ` acts on each
 //! dimension pair's 3 × 3 block as `f B fᵀ` (three row and three column operations); `G`
@@ -197,6 +202,16 @@ impl<const D: usize> CaModel<D> {
         self.sigma_w
     }
 
+    /// The same model for one axis (D = 1): `F`, `Q` and `G` of every axis are its blocks.
+    pub fn axis(&self) -> CaModel<1> {
+        CaModel {
+            dt: self.dt,
+            sigma_w: self.sigma_w,
+            half_dt2: self.half_dt2,
+            q: self.q,
+        }
+    }
+
     /// State dimension `3D`.
     pub const fn state_dim(&self) -> usize {
         3 * D
@@ -267,38 +282,41 @@ fn kron_identity_static<const S: usize>(b: &Matrix3<f64>, d: usize) -> SMatrix<f
 #[derive(Debug, Clone)]
 pub struct CaBatch<const D: usize> {
     runs: usize,
-    /// Packed covariances by tile of [`TILE`] runs: entry `k` of run `t·TILE + l` at
-    /// `cov[t][k][l]` (the kernels work on a tile in place: no copies in and out).
-    cov: Vec<Box<[Lane; MAXP]>>,
+    /// Packed covariances by tile of [`TILE`] runs, `np = 3D(3D+1)/2` lanes per tile: entry
+    /// `k` of run `t·TILE + l` at `cov[t·np + k][l]` (contiguous: only the lanes in use).
+    cov: Vec<Lane>,
     /// Mean: component `a` of run `r` at `a * runs + r`.
     mean: Vec<f64>,
-    /// Gains of the last correction by tile, `K[a][c]` of run `t·TILE + l` at
-    /// `gain[t][a·D + c][l]` (zero where the run was not corrected).
-    gain: Vec<Box<[Lane; MAXK]>>,
-    /// Scratch: the masked innovations, `D × runs`.
-    innov: Vec<f64>,
-    /// Scratch of one tile.
-    work: Work,
+    /// Scratch of one tile for the methods without a `_in` suffix (created on first use;
+    /// callers with many batches pass one shared [`CaWork`] to the `_in` methods instead, so
+    /// that the scratch stays in cache).
+    work: Option<Box<CaWork>>,
 }
 
 /// Largest packed covariance length, `9·10/2` (D = 3).
 const MAXP: usize = 45;
-/// Largest gain size, `9 · 3`.
-const MAXK: usize = 27;
 
 /// One row of a tile: one value per run of the tile.
 type Lane = [f64; TILE];
 
-/// Scratch of one tile of [`TILE`] runs, fixed-size so that every index in the lane loops is a
-/// compile-time constant (no bounds checks, so the loops over the runs vectorise).
+/// Scratch of the kernels for one tile of [`TILE`] runs (fixed-size lanes, so the loops over
+/// the runs have no bounds checks and vectorise). One is enough for any number of batches of
+/// any dimension: the kernels run one tile at a time.
 #[derive(Debug, Clone)]
-struct Work {
+pub struct CaWork {
     /// The tile's packed `R̃` (input).
     r: Box<[Lane; 6]>,
     /// Observed lanes (false beyond the tile's width).
     m: Box<[bool; TILE]>,
-    /// The tile's packed covariance (output; swapped with the tile's storage).
+    /// The tile's packed covariance (output; copied back into the tile).
     out: Box<[Lane; MAXP]>,
+    /// Gains of the last correction by tile, `3D·D` lanes per tile: `K[a][c]` of run
+    /// `t·TILE + l` at `gain[t·3D·D + a·D + c][l]` (zero where the run was not corrected);
+    /// read by the mean correction that follows. Grown to the largest batch seen (callers size
+    /// it once with [`CaWork::for_runs`]).
+    gain: Vec<Lane>,
+    /// The masked innovations of the mean correction, `D × runs`.
+    innov: Vec<f64>,
     /// The kernels' intermediate lanes, reused: every lane a kernel reads it has written in the
     /// same call, so nothing is zeroed per call (zeroing 64-lane tiles cost more than the
     /// arithmetic for a few runs).
@@ -325,13 +343,64 @@ impl Tmp {
     }
 }
 
-impl Work {
-    fn new() -> Self {
+impl Default for CaWork {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CaWork {
+    /// Scratch for the `_in` methods of [`CaBatch`], sized for batches of up to `runs` runs of
+    /// dimension up to `dim` (larger batches grow it on first use).
+    pub fn for_runs(runs: usize, dim: usize) -> Self {
+        let mut w = Self::new();
+        w.reserve(runs, dim);
+        w
+    }
+
+    /// Replaces the gains of the last correction (of a batch of `groups` runs of dimension
+    /// `dim`) by the gains of a batch of `groups · group` runs in which run `r` has the gain of
+    /// run `r / group`: what [`CaBatch::correct_mean_in`] of that larger batch reads.
+    pub fn broadcast_gains(&mut self, groups: usize, group: usize, dim: usize) {
+        let nk = 3 * dim * dim;
+        debug_assert!(groups <= 3 && nk <= 27, "a few groups of small batches");
+        let mut g = [[0.0; 3]; 27];
+        for (row, v) in g.iter_mut().enumerate().take(nk) {
+            for (q, vq) in v.iter_mut().enumerate().take(groups) {
+                *vq = self.gain[row][q];
+            }
+        }
+        let runs = groups * group;
+        self.reserve(runs, dim);
+        for r in 0..runs {
+            let (t, l) = (r / TILE, r % TILE);
+            for (row, v) in g.iter().enumerate().take(nk) {
+                self.gain[t * nk + row][l] = v[r / group];
+            }
+        }
+    }
+
+    /// Grows the gain and innovation scratch for a batch of `runs` runs of dimension `dim`
+    /// (no allocation once it is large enough).
+    fn reserve(&mut self, runs: usize, dim: usize) {
+        let gains = runs.div_ceil(TILE) * 3 * dim * dim;
+        if self.gain.len() < gains {
+            self.gain.resize(gains, [0.0; TILE]);
+        }
+        if self.innov.len() < dim * runs {
+            self.innov.resize(dim * runs, 0.0);
+        }
+    }
+
+    /// Scratch for the `_in` methods of [`CaBatch`] (≈ 60 kB, plus the gains once used).
+    pub fn new() -> Self {
         Self {
             r: Box::new([[0.0; TILE]; 6]),
             m: Box::new([false; TILE]),
             out: Box::new([[0.0; TILE]; MAXP]),
             tmp: Tmp::new(),
+            gain: Vec::new(),
+            innov: Vec::new(),
         }
     }
 }
@@ -371,22 +440,19 @@ impl<const D: usize> CaBatch<D> {
         let np = packed_len(n);
         let mut packed = vec![0.0; np];
         pack(cov0, &mut packed);
-        let mut tile = Box::new([[0.0; TILE]; MAXP]);
-        for (k, v) in packed.iter().enumerate() {
-            tile[k] = [*v; TILE];
-        }
         let tiles = runs.div_ceil(TILE);
+        let cov = (0..tiles)
+            .flat_map(|_| packed.iter().map(|v| [*v; TILE]))
+            .collect();
         let mut mean = vec![0.0; n * runs];
         for (a, v) in mean0.iter().enumerate() {
             mean[a * runs..(a + 1) * runs].fill(*v);
         }
         Ok(Self {
             runs,
-            cov: vec![tile; tiles],
+            cov,
             mean,
-            gain: vec![Box::new([[0.0; TILE]; MAXK]); tiles],
-            innov: vec![0.0; D * runs],
-            work: Work::new(),
+            work: None,
         })
     }
 
@@ -398,8 +464,13 @@ impl<const D: usize> CaBatch<D> {
     /// Entry `k` (packed index, [`packed_index`]) of run `r`'s covariance.
     #[inline]
     pub fn cov_entry(&self, k: usize, r: usize) -> f64 {
-        self.cov[r / TILE][k][r % TILE]
+        self.cov[r / TILE * Self::NP + k][r % TILE]
     }
+
+    /// Lanes per tile of the packed covariance.
+    const NP: usize = packed_len(3 * D);
+    /// Lanes per tile of the gains.
+    const NK: usize = 3 * D * D;
 
     /// Means (`3D × runs`, runs innermost).
     pub fn mean(&self) -> &[f64] {
@@ -411,9 +482,14 @@ impl<const D: usize> CaBatch<D> {
         &mut self.mean
     }
 
-    /// Gain entry `K[a][c]` of run `r` of the last correction (zero where not corrected).
+    /// Gain entry `K[a][c]` of run `r` of the last [`Self::correct_cov`] (zero where not
+    /// corrected, or before any correction; the `_in` methods leave their gains in the
+    /// caller's [`CaWork`]).
     pub fn gain_entry(&self, a: usize, c: usize, r: usize) -> f64 {
-        self.gain[r / TILE][a * D + c][r % TILE]
+        self.work
+            .as_ref()
+            .and_then(|w| w.gain.get(r / TILE * Self::NK + a * D + c))
+            .map_or(0.0, |lane| lane[r % TILE])
     }
 
     /// The covariance of run `r`, dense (allocates; for tests and diagnostics).
@@ -422,12 +498,32 @@ impl<const D: usize> CaBatch<D> {
         DMatrix::from_fn(n, n, |a, b| self.cov_entry(packed_index(n, a, b), r))
     }
 
+    /// Sets every run's covariance to that of run `r / group` of `src` (a batch of
+    /// `self.runs() / group` runs whose runs stand for groups of `group` runs here).
+    ///
+    /// # Panics
+    /// If `src` has fewer than `self.runs().div_ceil(group)` runs.
+    pub fn broadcast_from(&mut self, src: &CaBatch<D>, group: usize) {
+        assert!(
+            src.runs >= self.runs.div_ceil(group),
+            "src has a run per group"
+        );
+        for r in 0..self.runs {
+            let (t, l) = (r / TILE, r % TILE);
+            let g = r / group;
+            let (ts, ls) = (g / TILE, g % TILE);
+            for k in 0..Self::NP {
+                self.cov[t * Self::NP + k][l] = src.cov[ts * Self::NP + k][ls];
+            }
+        }
+    }
+
     /// Sets the covariance of run `r` from a dense symmetric matrix (upper triangle used).
     pub fn set_covariance(&mut self, r: usize, m: &DMatrix<f64>) {
         let n = 3 * D;
         for a in 0..n {
             for b in a..n {
-                self.cov[r / TILE][packed_index(n, a, b)][r % TILE] = m[(a, b)];
+                self.cov[r / TILE * Self::NP + packed_index(n, a, b)][r % TILE] = m[(a, b)];
             }
         }
     }
@@ -448,33 +544,26 @@ impl<const D: usize> CaBatch<D> {
 
     /// Covariance prediction `Λ ← F Λ Fᵀ + Q` for every run.
     pub fn predict_cov(&mut self, model: &CaModel<D>) {
+        let mut work = self.work.take().unwrap_or_default();
+        self.predict_cov_in(model, &mut work);
+        self.work = Some(work);
+    }
+
+    /// [`Self::predict_cov`] with the caller's scratch.
+    pub fn predict_cov_in(&mut self, model: &CaModel<D>, work: &mut CaWork) {
         let runs = self.runs;
-        for (t, tile) in self.cov.iter_mut().enumerate() {
+        for (t, tile) in self.cov.chunks_exact_mut(Self::NP).enumerate() {
             let w = TILE.min(runs - t * TILE);
-            predict_tile::<D>(tile, &mut self.work.out, model, w);
-            std::mem::swap(tile, &mut self.work.out);
+            predict_tile::<D>(tile, &mut work.out[..Self::NP], model, w);
+            for (dst, src) in tile.iter_mut().zip(work.out.iter()) {
+                dst[..w].copy_from_slice(&src[..w]);
+            }
         }
     }
 
     /// Mean prediction `γ̂ ← F γ̂` for every run.
     pub fn predict_mean(&mut self, model: &CaModel<D>) {
-        let runs = self.runs;
-        let (h, c) = (model.dt, model.half_dt2);
-        for d in 0..D {
-            // Block rows in ascending order: row 0 reads the old rows 1 and 2.
-            let i0 = d * runs;
-            let i1 = (D + d) * runs;
-            let i2 = (2 * D + d) * runs;
-            let (lo, hi) = self.mean.split_at_mut(i1);
-            let (mid, top) = hi.split_at_mut(i2 - i1);
-            let x0 = &mut lo[i0..i0 + runs];
-            let x1 = &mut mid[..runs];
-            let x2 = &top[..runs];
-            for r in 0..runs {
-                x0[r] += h * x1[r] + c * x2[r];
-                x1[r] += h * x2[r];
-            }
-        }
+        predict_means(&mut self.mean, self.runs, D, model.dt, model.half_dt2);
     }
 
     /// Joseph-form covariance correction for the runs whose `mask` entry is true, with
@@ -488,28 +577,50 @@ impl<const D: usize> CaBatch<D> {
     /// # Panics
     /// If `r_tilde` or `mask` have the wrong length.
     pub fn correct_cov(&mut self, r_tilde: &[f64], mask: &[bool]) {
+        let mut work = self.work.take().unwrap_or_default();
+        self.correct_cov_in(r_tilde, mask, &mut work);
+        self.work = Some(work);
+    }
+
+    /// [`Self::correct_cov`] with the caller's scratch.
+    ///
+    /// # Panics
+    /// If `r_tilde` or `mask` have the wrong length.
+    pub fn correct_cov_in(&mut self, r_tilde: &[f64], mask: &[bool], work: &mut CaWork) {
         let runs = self.runs;
         assert_eq!(r_tilde.len(), packed_len(D) * runs, "r_tilde length");
         assert_eq!(mask.len(), runs, "mask length");
         let nr = packed_len(D);
-        for (t, (tile, gain)) in self.cov.iter_mut().zip(self.gain.iter_mut()).enumerate() {
+        work.reserve(runs, D);
+        let CaWork {
+            r: wr,
+            m: wm,
+            out,
+            tmp,
+            gain: wg,
+            ..
+        } = work;
+        let tiles = self.cov.chunks_exact_mut(Self::NP);
+        for (t, (tile, gain)) in tiles.zip(wg.chunks_exact_mut(Self::NK)).enumerate() {
             let r0 = t * TILE;
             let w = TILE.min(runs - r0);
             let m = &mask[r0..r0 + w];
             if !m.iter().any(|&b| b) {
-                for row in gain.iter_mut().take(3 * D * D) {
+                for row in gain.iter_mut() {
                     row[..w].fill(0.0);
                 }
                 continue;
             }
-            let wk = &mut self.work;
             for k in 0..nr {
-                wk.r[k][..w].copy_from_slice(&r_tilde[k * runs + r0..k * runs + r0 + w]);
+                wr[k][..w].copy_from_slice(&r_tilde[k * runs + r0..k * runs + r0 + w]);
             }
-            wk.m[..w].copy_from_slice(m);
-            wk.m[w..].fill(false);
-            correct_tile::<D>(tile, &wk.r, &wk.m, &mut wk.out, &mut wk.tmp, gain, w);
-            std::mem::swap(tile, &mut wk.out);
+            wm[..w].copy_from_slice(m);
+            wm[w..].fill(false);
+            let out = &mut out[..Self::NP];
+            correct_tile::<D>(tile, wr, wm, out, tmp, gain, w);
+            for (dst, src) in tile.iter_mut().zip(out.iter()) {
+                dst[..w].copy_from_slice(&src[..w]);
+            }
         }
     }
 
@@ -520,32 +631,54 @@ impl<const D: usize> CaBatch<D> {
     /// # Panics
     /// If `y` or `mask` have the wrong length.
     pub fn correct_mean(&mut self, y: &[f64], mask: &[bool]) {
+        let mut work = self.work.take().unwrap_or_default();
+        self.correct_mean_in(y, mask, &mut work);
+        self.work = Some(work);
+    }
+
+    /// [`Self::correct_mean`] with the gains of the last [`Self::correct_cov_in`] on `work`.
+    ///
+    /// # Panics
+    /// If `y` or `mask` have the wrong length.
+    pub fn correct_mean_in(&mut self, y: &[f64], mask: &[bool], work: &mut CaWork) {
         let runs = self.runs;
+        work.reserve(runs, D);
+        let CaWork { gain, innov, .. } = work;
         assert_eq!(y.len(), D * runs, "y length");
         assert_eq!(mask.len(), runs, "mask length");
         for c in 0..D {
             let xc = &self.mean[c * runs..(c + 1) * runs];
             let yc = &y[c * runs..(c + 1) * runs];
-            let v = &mut self.innov[c * runs..(c + 1) * runs];
+            let v = &mut innov[c * runs..(c + 1) * runs];
             for r in 0..runs {
                 let d = yc[r] - xc[r];
                 v[r] = if mask[r] { d } else { 0.0 };
             }
         }
-        for (t, gain) in self.gain.iter().enumerate() {
+        for (t, gain) in gain
+            .chunks_exact(Self::NK)
+            .take(runs.div_ceil(TILE))
+            .enumerate()
+        {
             let r0 = t * TILE;
             let w = TILE.min(runs - r0);
             for a in 0..3 * D {
                 let xa = &mut self.mean[a * runs + r0..a * runs + r0 + w];
                 for c in 0..D {
                     let k = &gain[a * D + c][..w];
-                    let v = &self.innov[c * runs + r0..c * runs + r0 + w];
+                    let v = &innov[c * runs + r0..c * runs + r0 + w];
                     for l in 0..w {
                         xa[l] += k[l] * v[l];
                     }
                 }
             }
         }
+    }
+
+    /// Prediction of covariances and means with the caller's scratch (the means need none).
+    pub fn predict_in(&mut self, model: &CaModel<D>, work: &mut CaWork) {
+        self.predict_cov_in(model, work);
+        self.predict_mean(model);
     }
 
     /// One full step: predict, then correct covariance and mean where `mask` is true.
@@ -556,14 +689,29 @@ impl<const D: usize> CaBatch<D> {
     }
 }
 
+/// `γ̂ ← F γ̂` for `dims` axes of a batch of means (`3·dims × runs`, runs innermost; entry
+/// `β·dims + d` is block `β` of axis `d`), `h = Δt`, `c = Δt²/2`.
+pub(crate) fn predict_means(mean: &mut [f64], runs: usize, dims: usize, h: f64, c: f64) {
+    for d in 0..dims {
+        // Block rows in ascending order: row 0 reads the old rows 1 and 2.
+        let i0 = d * runs;
+        let i1 = (dims + d) * runs;
+        let i2 = (2 * dims + d) * runs;
+        let (lo, hi) = mean.split_at_mut(i1);
+        let (mid, top) = hi.split_at_mut(i2 - i1);
+        let x0 = &mut lo[i0..i0 + runs];
+        let x1 = &mut mid[..runs];
+        let x2 = &top[..runs];
+        for r in 0..runs {
+            x0[r] += h * x1[r] + c * x2[r];
+            x1[r] += h * x2[r];
+        }
+    }
+}
+
 /// [`predict_lanes`] compiled for AVX2 when the CPU has it (no FMA: the same operations, so the
 /// same bits).
-fn predict_tile<const D: usize>(
-    p: &[Lane; MAXP],
-    out: &mut [Lane; MAXP],
-    model: &CaModel<D>,
-    width: usize,
-) {
+fn predict_tile<const D: usize>(p: &[Lane], out: &mut [Lane], model: &CaModel<D>, width: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -577,8 +725,8 @@ fn predict_tile<const D: usize>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn predict_lanes_avx2<const D: usize>(
-    p: &[Lane; MAXP],
-    out: &mut [Lane; MAXP],
+    p: &[Lane],
+    out: &mut [Lane],
     model: &CaModel<D>,
     width: usize,
 ) {
@@ -587,12 +735,12 @@ unsafe fn predict_lanes_avx2<const D: usize>(
 
 /// [`correct_lanes`] compiled for AVX2 when the CPU has it (same bits).
 fn correct_tile<const D: usize>(
-    p: &[Lane; MAXP],
+    p: &[Lane],
     r: &[Lane; 6],
     m: &[bool; TILE],
-    out: &mut [Lane; MAXP],
+    out: &mut [Lane],
     tmp: &mut Tmp,
-    kout: &mut [Lane; MAXK],
+    kout: &mut [Lane],
     width: usize,
 ) {
     #[cfg(target_arch = "x86_64")]
@@ -608,12 +756,12 @@ fn correct_tile<const D: usize>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn correct_lanes_avx2<const D: usize>(
-    p: &[Lane; MAXP],
+    p: &[Lane],
     r: &[Lane; 6],
     m: &[bool; TILE],
-    out: &mut [Lane; MAXP],
+    out: &mut [Lane],
     tmp: &mut Tmp,
-    kout: &mut [Lane; MAXK],
+    kout: &mut [Lane],
     width: usize,
 ) {
     correct_lanes::<D>(p, r, m, out, tmp, kout, width);
@@ -625,12 +773,7 @@ unsafe fn correct_lanes_avx2<const D: usize>(
 /// (`Q = Q₃ ⊗ I_D` adds `Q₃` to the diagonal pairs). Written a row of lanes at a time (each
 /// statement is a loop over the tile's runs), so every loop vectorises.
 #[inline(always)]
-fn predict_lanes<const D: usize>(
-    p: &[Lane; MAXP],
-    out: &mut [Lane; MAXP],
-    model: &CaModel<D>,
-    width: usize,
-) {
+fn predict_lanes<const D: usize>(p: &[Lane], out: &mut [Lane], model: &CaModel<D>, width: usize) {
     // The first `width` lanes are used (a chunk of fewer runs than a tile computes no more).
     // One loop over the lanes per output entry, `X = f B` recomputed in registers inside it
     // (the same operations in the same order as forming X first): no scratch rows.
@@ -692,12 +835,12 @@ fn fbf<const I: usize, const J: usize>(b: &[[&Lane; 3]; 3], l: usize, h: f64, c:
 /// loop vectorises (the selects become blends).
 #[inline(always)]
 fn correct_lanes<const D: usize>(
-    p: &[Lane; MAXP],
+    p: &[Lane],
     r: &[Lane; 6],
     m: &[bool; TILE],
-    out: &mut [Lane; MAXP],
+    out: &mut [Lane],
     tmp: &mut Tmp,
-    kout: &mut [Lane; MAXK],
+    kout: &mut [Lane],
     width: usize,
 ) {
     // One loop over the lanes per output row, with the sums over the D measurement components
@@ -1349,6 +1492,87 @@ mod tests {
                     tm * per
                 );
             }
+        }
+    }
+
+    #[test]
+    #[ignore = "report: kernel timing of one axis (the decoupled form), in cache"]
+    fn report_axis_kernel_timing() {
+        let model = CaModel::<1>::new(0.01, 1.0).unwrap();
+        for lanes in [100usize, 128, 1024] {
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+            let steps = 64;
+            let rts: Vec<Vec<f64>> = (0..steps)
+                .map(|_| {
+                    (0..lanes)
+                        .map(|_| 0.01 * rng.random_range(1.0..3.0))
+                        .collect()
+                })
+                .collect();
+            let mask = vec![true; lanes];
+            let y = vec![0.5; lanes];
+            let mut b = CaBatch::<1>::new(lanes, &DMatrix::identity(3, 3), &[0.0; 3]).unwrap();
+            let mut work = CaWork::new();
+            let (mut tp, mut tc, mut tm) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+            for _ in 0..300 {
+                let t = std::time::Instant::now();
+                for _ in 0..steps {
+                    b.predict_cov_in(&model, &mut work);
+                }
+                tp = tp.min(t.elapsed().as_secs_f64());
+                let t = std::time::Instant::now();
+                for rt in &rts {
+                    b.correct_cov_in(rt, &mask, &mut work);
+                }
+                tc = tc.min(t.elapsed().as_secs_f64());
+                let t = std::time::Instant::now();
+                for _ in 0..steps {
+                    b.predict_mean(&model);
+                    b.correct_mean(&y, &mask);
+                }
+                tm = tm.min(t.elapsed().as_secs_f64());
+            }
+            let per = 1e9 / (lanes * steps) as f64;
+            eprintln!(
+                "lanes {lanes}: ns per axis-run-step: predict Λ {:.2}, correct Λ {:.2}, mean {:.2}",
+                tp * per,
+                tc * per,
+                tm * per
+            );
+        }
+    }
+
+    #[test]
+    #[ignore = "report: kernel timing of one axis over many batches (out of cache)"]
+    fn report_many_batches_timing() {
+        let model = CaModel::<1>::new(0.01, 1.0).unwrap();
+        let lanes = 100;
+        for nb in [2450usize, 20] {
+            let mut bs: Vec<CaBatch<1>> = (0..nb)
+                .map(|_| CaBatch::<1>::new(lanes, &DMatrix::identity(3, 3), &[0.0; 3]).unwrap())
+                .collect();
+            let rt = vec![0.02; lanes];
+            let mask = vec![true; lanes];
+            let y = vec![0.5; lanes];
+            let mut work = CaWork::new();
+            let steps = 20 * 2450 / nb;
+            let mut best = f64::INFINITY;
+            for _ in 0..5 {
+                let t = std::time::Instant::now();
+                for _ in 0..steps {
+                    for i in 0..nb {
+                        let b = &mut bs[i];
+                        b.predict_in(&model, &mut work);
+                        b.correct_cov_in(&rt, &mask, &mut work);
+                        b.correct_mean_in(&y, &mask, &mut work);
+                    }
+                }
+                best = best.min(t.elapsed().as_secs_f64());
+            }
+            eprintln!(
+                "{nb} batches: {:.2} ns per axis-run-step",
+                best * 1e9 / (lanes * nb * steps) as f64
+            );
         }
     }
 

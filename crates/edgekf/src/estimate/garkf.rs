@@ -74,7 +74,7 @@ use std::sync::Arc;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::ca::{packed_index, packed_len};
+use super::ca::packed_index;
 use super::pcrb::Observation;
 use super::ral::{
     consensus_stability, estimate_from_sums, InfeasibleRal, RalEstimate, RalOptions, RalSums,
@@ -338,6 +338,13 @@ pub struct Garkf<const D: usize> {
     has_psi: Vec<bool>,
     /// Scratch of the metric edge: this step's observation per run.
     obs: Vec<Observation<D>>,
+    /// Per-run scratch of one agent: its RAL sums, ψ sums and counts, consensus increments
+    /// (the passes over an agent's edges run the runs innermost; each run's sums still add
+    /// the edges in ascending order).
+    sums: Vec<RalSums<D>>,
+    psi_sum: Vec<f64>,
+    count: Vec<usize>,
+    delta: Vec<Mat<D>>,
     geometric_updates: u64,
 }
 
@@ -358,7 +365,15 @@ impl<const D: usize> Garkf<D> {
         let pp = p.iter().map(|v| v * v.transpose()).collect();
         let na = m.agents * runs;
         Self {
-            ca: CaEdges::new(m, st.sigma_w, samples, runs),
+            // R̃ is diagonal in W's eigenbasis for the general RAL ((15): a multiple of W, plus
+            // ψ I) and the translation RAL (ψ I); the other variants' R^ral are not.
+            ca: CaEdges::new(
+                m,
+                st.sigma_w,
+                samples,
+                runs,
+                matches!(st.variant, RalVariant::General | RalVariant::Translation),
+            ),
             metric_edge: m.metric_edge,
             pcrb,
             st,
@@ -379,6 +394,18 @@ impl<const D: usize> Garkf<D> {
             psi: vec![0.0; na],
             has_psi: vec![false; na],
             obs: vec![Observation::Missing; runs],
+            sums: vec![
+                RalSums {
+                    gram: Mat::<D>::zeros(),
+                    cross: Mat::<D>::zeros(),
+                    gram_y: Mat::<D>::zeros(),
+                    neighbours: 0,
+                };
+                runs
+            ],
+            psi_sum: vec![0.0; runs],
+            count: vec![0; runs],
+            delta: vec![Mat::<D>::zeros(); runs],
             geometric_updates: 0,
         }
     }
@@ -412,7 +439,7 @@ impl<const D: usize> Garkf<D> {
 
     /// Posterior covariance (3D × 3D) of edge `e` in run `r`.
     pub fn covariance(&self, e: usize, r: usize) -> nalgebra::DMatrix<f64> {
-        self.ca.banks[e].covariance(r)
+        self.ca.covariance(e, r)
     }
 
     /// Lines 3–8: every present agent's RAL.
@@ -421,29 +448,32 @@ impl<const D: usize> Garkf<D> {
         let f = s.faults;
         let faults = f.measurement_faults();
         for i in 0..self.agents {
-            for r in 0..runs {
+            for sums in &mut self.sums {
+                sums.gram = Mat::<D>::zeros();
+                sums.cross = Mat::<D>::zeros();
+                sums.neighbours = 0;
+            }
+            for e in self.agent_edges[i].clone() {
+                let observed = f.observed_row(e);
+                let (pp, pt) = (self.pp[e], self.p[e].transpose());
+                let y = &s.y[e * D * runs..(e + 1) * D * runs];
+                for (r, sums) in self.sums.iter_mut().enumerate() {
+                    if observed[r] {
+                        let yr = Vect::<D>::from_fn(|a, _| y[a * runs + r]);
+                        sums.gram += pp;
+                        sums.cross += yr * pt;
+                        sums.neighbours += 1;
+                    }
+                }
+            }
+            for (r, sums) in self.sums.iter().enumerate() {
                 let k = i * runs + r;
                 self.feasible[k] = false;
                 self.theta_ral[k] = Mat::<D>::zeros();
                 if faults && !f.present(i, r) {
                     continue;
                 }
-                let mut sums = RalSums {
-                    gram: Mat::<D>::zeros(),
-                    cross: Mat::<D>::zeros(),
-                    gram_y: Mat::<D>::zeros(),
-                    neighbours: 0,
-                };
-                for e in self.agent_edges[i].clone() {
-                    if !f.observed(e, r) {
-                        continue;
-                    }
-                    let y = Vect::<D>::from_fn(|a, _| s.y[(e * D + a) * runs + r]);
-                    sums.gram += self.pp[e];
-                    sums.cross += y * self.p[e].transpose();
-                    sums.neighbours += 1;
-                }
-                if let Ok(est) = estimate_from_sums(self.st.variant, &sums, &self.opts) {
+                if let Ok(est) = estimate_from_sums(self.st.variant, sums, &self.opts) {
                     self.feasible[k] = true;
                     self.theta_ral[k] = est.theta;
                     self.held[k] = Some(Held {
@@ -463,25 +493,28 @@ impl<const D: usize> Garkf<D> {
         let faults = f.measurement_faults();
         let literal = self.st.mode == InfeasibleRal::Literal;
         for i in 0..self.agents {
+            self.psi_sum.fill(0.0);
+            self.count.fill(0);
+            let own = &self.theta_ral[i * runs..(i + 1) * runs];
+            for e in self.agent_edges[i].clone() {
+                let observed = f.observed_row(e);
+                let j = self.ca.edges[e].1;
+                let other = &self.theta_ral[j * runs..(j + 1) * runs];
+                let other_feasible = &self.feasible[j * runs..(j + 1) * runs];
+                for r in 0..runs {
+                    if observed[r] && (literal || other_feasible[r]) {
+                        self.psi_sum[r] += (own[r] - other[r]).norm_squared();
+                        self.count[r] += 1;
+                    }
+                }
+            }
             for r in 0..runs {
                 let k = i * runs + r;
                 if (faults && !f.present(i, r)) || (!literal && !self.feasible[k]) {
                     continue;
                 }
-                let own = self.theta_ral[k];
-                let (mut sum, mut count) = (0.0, 0usize);
-                for e in self.agent_edges[i].clone() {
-                    if !f.observed(e, r) {
-                        continue;
-                    }
-                    let kj = self.ca.edges[e].1 * runs + r;
-                    if literal || self.feasible[kj] {
-                        sum += (own - self.theta_ral[kj]).norm_squared();
-                        count += 1;
-                    }
-                }
-                if count > 0 {
-                    self.psi[k] = sum / count as f64;
+                if self.count[r] > 0 {
+                    self.psi[k] = self.psi_sum[r] / self.count[r] as f64;
                     self.has_psi[k] = true;
                 }
             }
@@ -496,28 +529,38 @@ impl<const D: usize> Garkf<D> {
         let faults = f.measurement_faults();
         let literal = self.st.mode == InfeasibleRal::Literal;
         for i in 0..self.agents {
+            let rows = i * runs..(i + 1) * runs;
+            let prev = &self.theta_prev[rows.clone()];
+            let (own_ral, own_feasible) = (&self.theta_ral[rows.clone()], &self.feasible[rows]);
+            for r in 0..runs {
+                self.delta[r] = if literal || own_feasible[r] {
+                    own_ral[r] - prev[r]
+                } else {
+                    Mat::<D>::zeros()
+                };
+            }
+            for e in self.agent_edges[i].clone() {
+                let observed = f.observed_row(e);
+                let j = self.ca.edges[e].1;
+                let other_prev = &self.theta_prev[j * runs..(j + 1) * runs];
+                let other_ral = &self.theta_ral[j * runs..(j + 1) * runs];
+                let other_feasible = &self.feasible[j * runs..(j + 1) * runs];
+                for r in 0..runs {
+                    if observed[r] {
+                        self.delta[r] += other_prev[r] - prev[r];
+                        if literal || other_feasible[r] {
+                            self.delta[r] += other_ral[r] - prev[r];
+                        }
+                    }
+                }
+            }
             for r in 0..runs {
                 let k = i * runs + r;
-                let prev = self.theta_prev[k];
-                if faults && !f.present(i, r) {
-                    self.theta[k] = prev;
-                    continue;
-                }
-                let mut delta = Mat::<D>::zeros();
-                if literal || self.feasible[k] {
-                    delta += self.theta_ral[k] - prev;
-                }
-                for e in self.agent_edges[i].clone() {
-                    if !f.observed(e, r) {
-                        continue;
-                    }
-                    let kj = self.ca.edges[e].1 * runs + r;
-                    delta += self.theta_prev[kj] - prev;
-                    if literal || self.feasible[kj] {
-                        delta += self.theta_ral[kj] - prev;
-                    }
-                }
-                self.theta[k] = prev + delta * self.st.eps;
+                self.theta[k] = if faults && !f.present(i, r) {
+                    prev[r]
+                } else {
+                    prev[r] + self.delta[r] * self.st.eps
+                };
             }
         }
     }
@@ -529,34 +572,20 @@ impl<const D: usize> Garkf<D> {
         let faults = f.measurement_faults();
         let (i, _) = self.ca.edges[e];
         let track = self.metric_edge == Some(e) && self.pcrb.is_some();
-        let np = packed_len(D);
         let w = self.ca.w[e];
         let p = self.p[e];
-        self.ca.banks[e].predict(&self.ca.model);
+        self.ca.predict(e);
         {
-            let CaEdges {
-                mask,
-                rt,
-                yt,
-                w_packed,
-                ..
-            } = &mut self.ca;
-            let wp = &w_packed[e];
+            let CaEdges { geo, rt, yt, .. } = &mut self.ca;
+            let observed = f.observed_row(e);
             for r in 0..runs {
-                if f.observed(e, r) {
-                    mask[r] = true;
-                    for kk in 0..np {
-                        rt[kk * runs + r] = wp[kk * runs + r];
-                    }
-                    for a in 0..D {
-                        yt[a * runs + r] = s.y[(e * D + a) * runs + r];
-                    }
+                geo[r] = false;
+                if observed[r] {
                     if track {
                         self.obs[r] = Observation::Direct;
                     }
                     continue;
                 }
-                mask[r] = false;
                 if track {
                     self.obs[r] = Observation::Missing;
                 }
@@ -578,7 +607,7 @@ impl<const D: usize> Garkf<D> {
                 if !(rg.iter().all(|v| v.is_finite()) && z.iter().all(|v| v.is_finite())) {
                     continue;
                 }
-                mask[r] = true;
+                geo[r] = true;
                 self.geometric_updates += 1;
                 for a in 0..D {
                     yt[a * runs + r] = z[a];
@@ -591,16 +620,8 @@ impl<const D: usize> Garkf<D> {
                 }
             }
         }
-        let CaEdges {
-            banks,
-            mask,
-            rt,
-            yt,
-            ..
-        } = &mut self.ca;
-        banks[e].correct_cov(rt, mask);
-        banks[e].correct_mean(yt, mask);
-        self.ca.export(e);
+        self.ca
+            .correct(e, &s.y[e * D * runs..(e + 1) * D * runs], f.observed_row(e));
         if track {
             if let Some(pc) = &mut self.pcrb {
                 for (r, o) in self.obs.iter().enumerate() {

@@ -35,7 +35,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, SMatrix};
 use serde::{Deserialize, Serialize};
 
-use super::ca::{packed_index, packed_len, CaBatch, CaModel};
+use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
 use super::pcrb::{EdgePcrb, GaPrior, Observation};
 use super::{
     options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
@@ -132,17 +132,17 @@ impl Configured for Config {
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
         match m.dim {
             1 => Box::new(RkfCa::<1>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs),
+                CaEdges::new(m, self.sigma_w, samples, runs, true),
                 m.metric_edge,
                 pcrb_runs::<1, 3>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
             2 => Box::new(RkfCa::<2>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs),
+                CaEdges::new(m, self.sigma_w, samples, runs, true),
                 m.metric_edge,
                 pcrb_runs::<2, 6>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
             _ => Box::new(RkfCa::<3>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs),
+                CaEdges::new(m, self.sigma_w, samples, runs, true),
                 m.metric_edge,
                 pcrb_runs::<3, 9>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
@@ -177,15 +177,65 @@ pub(crate) fn ca_cost(m: &Model) -> Cost {
     }
 }
 
+/// The CA filters of one directed edge: the full `3D × 3D` form, or one 3 × 3 filter per axis
+/// of the measurement covariance's eigenbasis (see [`CaEdges`]).
+#[derive(Debug, Clone)]
+pub(crate) enum CaBank<const D: usize> {
+    /// Any covariances: [`CaBatch<D>`].
+    Full(CaBatch<D>),
+    /// Decoupled axes: [`CaBatch<1>`] over `D · runs` lanes, axis `d` of run `r` at lane
+    /// `d · runs + r` (whose means are laid out exactly as [`CaBatch<D>`]'s, in the eigenbasis).
+    Axes(CaBatch<1>),
+}
+
+/// The eigenbasis in which every measurement covariance of the model is diagonal.
+#[derive(Debug, Clone)]
+pub(crate) struct AxesBasis<const D: usize> {
+    /// `U`, columns the axes (orthonormal); the identity when every covariance is diagonal.
+    u: SMatrix<f64, D, D>,
+    /// `U = I` exactly (no rotation is applied).
+    identity: bool,
+    /// `u_dᵀ W_e u_d` per edge and axis.
+    w: Vec<[f64; D]>,
+    /// Scratch over `D · runs` lanes: mask, `u_dᵀ R̃ u_d` and `Uᵀ ỹ` of one edge.
+    mask: Vec<bool>,
+    rt: Vec<f64>,
+    yt: Vec<f64>,
+}
+
 /// The CA filters of every directed edge for a batch of runs, and the scratch of one step
 /// (shared by `rkf-ca` and `garkf`; sized once, nothing allocates per step).
+///
+/// # Decoupled axes
+/// `F = f ⊗ I_D`, `Q = Q₃ ⊗ I_D` and `G = [1 0 0] ⊗ I_D` commute with any rotation of the D
+/// axes. When the initial position covariance is `p·I` and every observation covariance the
+/// filters will see is diagonal in one orthonormal basis `U` — the papers' `W = σ_v²/T ·
+/// [[1, ρ], [ρ, 1]]` (eigenvectors `[1, ±1]/√2` whatever σ_v, ρ), and with it GA-RKF's
+/// `R̃ = (p_ijᵀ A_i⁻¹ p_ij) W / N + ψ_i I` (eqs. 15, 17, 10) for the general RAL, or `ψ_i I`
+/// for the translation RAL — then in the coordinates `(I₃ ⊗ Uᵀ) γ` every covariance stays
+/// block diagonal, step after step: the edge filter is D independent 3 × 3 CA filters, one per
+/// axis, each with the scalar observation variance `u_dᵀ R̃ u_d`. That is what
+/// [`CaBank::Axes`] runs: per edge 6 covariance entries and 3 gains per axis and run instead of
+/// 21 and 12 (D = 2), a scalar innovation variance instead of a 2 × 2 inverse, and a third of
+/// the memory streamed per step (on the 2,450 directed edges of Fig. 13's dense graph, the
+/// difference between a working set far beyond the cache and one near it). The estimates are
+/// rotated back (`ẑ = U ẑ'`); traces are invariant. The result equals the full filter to
+/// rounding (the tests compare the two); the full form runs otherwise (constrained RAL variants,
+/// anisotropic initial covariance, covariances with different eigenvectors).
 #[derive(Debug, Clone)]
 pub(crate) struct CaEdges<const D: usize> {
     pub(crate) model: CaModel<D>,
+    /// The per-axis model (D = 1) of the decoupled form.
+    axis_model: CaModel<1>,
     pub(crate) runs: usize,
     pub(crate) edges: Vec<(usize, usize)>,
     /// One batch per directed edge.
-    pub(crate) banks: Vec<CaBatch<D>>,
+    pub(crate) banks: Vec<CaBank<D>>,
+    /// Per edge, while its covariance is the same in every run: that covariance, as a batch of
+    /// one run (see [`Self::correct`]); the batch in [`Self::banks`] then carries the means only.
+    shared: Vec<Option<CaBank<D>>>,
+    /// The decoupled form's basis and scratch (`None`: the full form).
+    axes: Option<AxesBasis<D>>,
     /// `W_e = R_e / T` per edge (packed upper triangle) broadcast over the runs:
     /// `packed_len(D) × runs`.
     pub(crate) w_packed: Vec<Vec<f64>>,
@@ -193,18 +243,68 @@ pub(crate) struct CaEdges<const D: usize> {
     pub(crate) w: Vec<SMatrix<f64, D, D>>,
     /// Position estimates, MD rows × runs.
     pub(crate) x: Vec<f64>,
-    /// Scratch: mask, `R̃` (packed × runs) and `ỹ` (D × runs) of one edge.
-    pub(crate) mask: Vec<bool>,
+    /// Scratch of one edge: which runs have a geometric observation, its `R̃` (packed × runs)
+    /// and `ỹ` (D × runs), filled by the caller of [`Self::correct`]; the kernels' mask.
+    pub(crate) geo: Vec<bool>,
     pub(crate) rt: Vec<f64>,
     pub(crate) yt: Vec<f64>,
+    mask: Vec<bool>,
+    /// The kernels' scratch, shared by every edge (it stays in cache).
+    work: CaWork,
+}
+
+impl<const D: usize> AxesBasis<D> {
+    /// `ỹ' = Uᵀ ỹ` of run `r` (`y`: `D × runs`) into the scratch.
+    #[inline]
+    fn rotate_in(&mut self, y: &[f64], r: usize, runs: usize) {
+        if self.identity {
+            for d in 0..D {
+                self.yt[d * runs + r] = y[d * runs + r];
+            }
+        } else {
+            for d in 0..D {
+                let mut acc = self.u[(0, d)] * y[r];
+                for a in 1..D {
+                    acc += self.u[(a, d)] * y[a * runs + r];
+                }
+                self.yt[d * runs + r] = acc;
+            }
+        }
+    }
+}
+
+/// Relative size of the off-diagonal entries of `Uᵀ W U` below which `W` counts as diagonal in
+/// the basis `U` (rounding of the eigendecomposition is ≈ 1e-16).
+const AXES_TOL: f64 = 1e-12;
+
+/// The basis that diagonalises every `W_e`, if there is one: the identity when all are diagonal,
+/// else the eigenvectors of `W_0` when they diagonalise the others.
+fn common_axes<const D: usize>(w: &[SMatrix<f64, D, D>]) -> Option<SMatrix<f64, D, D>> {
+    let off = |m: &SMatrix<f64, D, D>| {
+        let scale = m.diagonal().amax();
+        (0..D).all(|a| (0..D).all(|b| a == b || m[(a, b)].abs() <= AXES_TOL * scale))
+    };
+    let exact_diagonal =
+        |m: &SMatrix<f64, D, D>| (0..D).all(|a| (0..D).all(|b| a == b || m[(a, b)] == 0.0));
+    if w.iter().all(exact_diagonal) {
+        return Some(SMatrix::identity());
+    }
+    let w0 = w.first()?;
+    let eig = DMatrix::from_fn(D, D, |a, b| w0[(a, b)]).symmetric_eigen();
+    let u = SMatrix::<f64, D, D>::from_fn(|a, b| eig.eigenvectors[(a, b)]);
+    w.iter()
+        .all(|we| off(&(u.transpose() * we * u)))
+        .then_some(u)
 }
 
 impl<const D: usize> CaEdges<D> {
     /// The filters of every edge of `m`, started at `γ̂_0 = 0`, `Λ_0 = blockdiag(2P, I, I)`.
+    /// `axes_ok`: every `R̃` the caller will pass is diagonal in the basis of the `W_e` (then
+    /// the decoupled form runs when the model allows it; see the type's documentation).
     ///
     /// # Panics
     /// If σ_w or Δt is not positive (the kinds check both) or D ∉ {1, 2, 3}.
-    pub(crate) fn new(m: &Model, sigma_w: f64, samples: usize, runs: usize) -> Self {
+    pub(crate) fn new(m: &Model, sigma_w: f64, samples: usize, runs: usize, axes_ok: bool) -> Self {
         let model = CaModel::<D>::new(m.dt, sigma_w).expect("checked by the kind");
         let ne = m.num_edges();
         let n = 3 * D;
@@ -223,55 +323,286 @@ impl<const D: usize> CaEdges<D> {
                 v
             })
             .collect();
-        let banks = (0..ne)
-            .map(|e| {
-                let cov0 = initial_covariance::<D>(&m.edge_p0(e, e));
-                CaBatch::<D>::new(runs, &cov0, &vec![0.0; n]).expect("valid initial covariance")
-            })
-            .collect();
+        let p0: Vec<DMatrix<f64>> = (0..ne).map(|e| m.edge_p0(e, e)).collect();
+        let isotropic = |p: &DMatrix<f64>| {
+            (0..D).all(|a| (0..D).all(|b| p[(a, b)] == if a == b { p[(0, 0)] } else { 0.0 }))
+        };
+        let axes = if axes_ok && p0.iter().all(isotropic) {
+            common_axes(&w)
+        } else {
+            None
+        };
+        // `lanes` runs of the form, every run from the same covariance.
+        let bank = |p: &DMatrix<f64>, lanes: usize| match axes {
+            Some(_) => {
+                let cov3 = initial_covariance::<1>(&DMatrix::from_element(1, 1, p[(0, 0)]));
+                CaBank::Axes(CaBatch::<1>::new(D * lanes, &cov3, &[0.0; 3]).expect("valid"))
+            }
+            None => CaBank::Full(
+                CaBatch::<D>::new(lanes, &initial_covariance::<D>(p), &vec![0.0; n])
+                    .expect("valid initial covariance"),
+            ),
+        };
+        let banks = p0.iter().map(|p| bank(p, runs)).collect();
+        let shared = p0.iter().map(|p| Some(bank(p, 1))).collect();
         Self {
             model,
+            axis_model: model.axis(),
             runs,
             edges: m.edges.clone(),
             banks,
+            shared,
+            axes: axes.map(|u| AxesBasis {
+                u,
+                identity: u == SMatrix::<f64, D, D>::identity(),
+                w: w.iter()
+                    .map(|we| {
+                        std::array::from_fn(|d| {
+                            (u.column(d).transpose() * we * u.column(d))[(0, 0)]
+                        })
+                    })
+                    .collect(),
+                mask: vec![false; D * runs],
+                rt: vec![1.0; D * runs],
+                yt: vec![0.0; D * runs],
+            }),
             w_packed,
             w,
             x: vec![0.0; ne * D * runs],
+            geo: vec![false; runs],
             mask: vec![false; runs],
             rt: vec![0.0; np * runs],
             yt: vec![0.0; D * runs],
+            work: CaWork::for_runs(D * runs, D),
         }
     }
 
-    /// Copies the position block of edge `e`'s means into [`Self::x`].
+    /// Whether the decoupled form runs.
+    #[cfg(test)]
+    pub(crate) fn decoupled(&self) -> bool {
+        self.axes.is_some()
+    }
+
+    /// Prediction of edge `e`'s filters.
+    pub(crate) fn predict(&mut self, e: usize) {
+        let work = &mut self.work;
+        match (&mut self.banks[e], &mut self.shared[e]) {
+            (CaBank::Full(b), None) => b.predict_in(&self.model, work),
+            (CaBank::Axes(b), None) => b.predict_in(&self.axis_model, work),
+            (CaBank::Full(b), Some(CaBank::Full(sb))) => {
+                sb.predict_cov_in(&self.model, work);
+                b.predict_mean(&self.model);
+            }
+            (CaBank::Axes(b), Some(CaBank::Axes(sb))) => {
+                sb.predict_cov_in(&self.axis_model, work);
+                b.predict_mean(&self.axis_model);
+            }
+            _ => unreachable!("an edge's shared covariance has the form of its batch"),
+        }
+    }
+
+    /// Gives every edge its per-run covariances now (what the first step that differs between
+    /// runs does; for tests).
+    #[cfg(test)]
+    fn unshare(&mut self) {
+        for e in 0..self.banks.len() {
+            match (&mut self.banks[e], self.shared[e].take()) {
+                (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, self.runs),
+                (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, self.runs),
+                _ => {}
+            }
+        }
+    }
+
+    /// Edge `e`'s shared covariance, if it still has one: in the form of its batch, one run
+    /// (full form) or one lane per axis (decoupled form).
+    fn shared_cov(&self, e: usize) -> Option<&CaBank<D>> {
+        self.shared[e].as_ref()
+    }
+
+    /// Correction of edge `e`'s filters, then [`Self::export`]: the runs `observed` with the
+    /// direct measurement (`W_e`, `y`: the engine's `D × runs` rows of the edge), the other runs
+    /// whose [`Self::geo`] is set with the geometric observation in [`Self::rt`] (packed) and
+    /// [`Self::yt`].
+    ///
+    /// # Shared covariances
+    /// Every run starts from the same covariance, and the covariance recursion does not depend
+    /// on the data: as long as every step of an edge observes it directly in every run (or in
+    /// none), its covariance is the same in every run. Until then the edge keeps one copy
+    /// ([`Self::shared`]), steps it alone and gives its gain to every run's mean — the same
+    /// arithmetic on the same numbers as in each run's lane, so the same bits, without
+    /// streaming a covariance per run through memory (before the departures of Fig. 13 that is
+    /// most of the memory traffic). The first step that differs between runs copies the shared
+    /// covariance into every run.
+    pub(crate) fn correct(&mut self, e: usize, y: &[f64], observed: &[bool]) {
+        let runs = self.runs;
+        if self.shared[e].is_some() {
+            let all = observed.iter().all(|&o| o);
+            let none = !all && !observed.iter().any(|&o| o) && !self.geo.iter().any(|&g| g);
+            if all || none {
+                self.correct_shared(e, y, all);
+                return;
+            }
+            match (&mut self.banks[e], self.shared[e].take()) {
+                (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, runs),
+                (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, runs),
+                _ => unreachable!("an edge's shared covariance has the form of its batch"),
+            }
+        }
+        match (&mut self.banks[e], &mut self.axes) {
+            (CaBank::Full(b), _) => {
+                let wp = &self.w_packed[e];
+                for r in 0..runs {
+                    self.mask[r] = observed[r] || self.geo[r];
+                    if observed[r] {
+                        for k in 0..packed_len(D) {
+                            self.rt[k * runs + r] = wp[k * runs + r];
+                        }
+                        for a in 0..D {
+                            self.yt[a * runs + r] = y[a * runs + r];
+                        }
+                    }
+                }
+                b.correct_cov_in(&self.rt, &self.mask, &mut self.work);
+                b.correct_mean_in(&self.yt, &self.mask, &mut self.work);
+            }
+            (CaBank::Axes(b), Some(ax)) => {
+                // Direct observations for every run (the lanes run innermost; runs that are not
+                // observed get values the kernels do not read), then the geometric ones.
+                for d in 0..D {
+                    let (lo, hi) = (d * runs, (d + 1) * runs);
+                    let (m, rt, yt) =
+                        (&mut ax.mask[lo..hi], &mut ax.rt[lo..hi], &mut ax.yt[lo..hi]);
+                    let (wd, u) = (ax.w[e][d], ax.u.column(d));
+                    for r in 0..runs {
+                        m[r] = observed[r] || self.geo[r];
+                        rt[r] = wd;
+                        yt[r] = if ax.identity {
+                            y[d * runs + r]
+                        } else {
+                            let mut acc = u[0] * y[r];
+                            for a in 1..D {
+                                acc += u[a] * y[a * runs + r];
+                            }
+                            acc
+                        };
+                    }
+                }
+                for r in 0..runs {
+                    if observed[r] || !self.geo[r] {
+                        continue;
+                    }
+                    if ax.identity {
+                        for d in 0..D {
+                            ax.rt[d * runs + r] = self.rt[packed_index(D, d, d) * runs + r];
+                        }
+                    } else {
+                        let rr = SMatrix::<f64, D, D>::from_fn(|a, c| {
+                            self.rt[packed_index(D, a, c) * runs + r]
+                        });
+                        for d in 0..D {
+                            let ud = ax.u.column(d);
+                            ax.rt[d * runs + r] = (ud.transpose() * rr * ud)[(0, 0)];
+                        }
+                    }
+                    ax.rotate_in(&self.yt, r, runs);
+                }
+                b.correct_cov_in(&ax.rt, &ax.mask, &mut self.work);
+                b.correct_mean_in(&ax.yt, &ax.mask, &mut self.work);
+            }
+            (CaBank::Axes(_), None) => unreachable!("the decoupled form has its basis"),
+        }
+        self.export(e);
+    }
+
+    /// [`Self::correct`] of an edge whose covariance is shared, at a step that observes it
+    /// directly in every run (`all`) or in none.
+    fn correct_shared(&mut self, e: usize, y: &[f64], all: bool) {
+        let runs = self.runs;
+        let work = &mut self.work;
+        match (&mut self.banks[e], &mut self.shared[e], &mut self.axes) {
+            (CaBank::Full(b), Some(CaBank::Full(sb)), _) => {
+                let we = self.w[e];
+                let mut r1 = [0.0; 6];
+                for a in 0..D {
+                    for c in a..D {
+                        r1[packed_index(D, a, c)] = we[(a, c)];
+                    }
+                }
+                sb.correct_cov_in(&r1[..packed_len(D)], &[all], work);
+                work.broadcast_gains(1, runs, D);
+                self.mask.fill(all);
+                b.correct_mean_in(y, &self.mask, work);
+            }
+            (CaBank::Axes(b), Some(CaBank::Axes(sb)), Some(ax)) => {
+                sb.correct_cov_in(&ax.w[e], &[all; D], work);
+                work.broadcast_gains(D, runs, 1);
+                ax.mask.fill(all);
+                if all {
+                    for r in 0..runs {
+                        ax.rotate_in(y, r, runs);
+                    }
+                }
+                b.correct_mean_in(&ax.yt, &ax.mask, work);
+            }
+            _ => unreachable!("an edge's shared covariance has the form of its batch"),
+        }
+        self.export(e);
+    }
+
+    /// Copies the position block of edge `e`'s means into [`Self::x`] (rotated back to the
+    /// model's axes in the decoupled form).
     pub(crate) fn export(&mut self, e: usize) {
         let r = self.runs;
-        self.x[e * D * r..(e + 1) * D * r].copy_from_slice(&self.banks[e].mean()[..D * r]);
+        let out = &mut self.x[e * D * r..(e + 1) * D * r];
+        match (&self.banks[e], &self.axes) {
+            (CaBank::Full(b), _) => out.copy_from_slice(&b.mean()[..D * r]),
+            (CaBank::Axes(b), Some(ax)) if ax.identity => out.copy_from_slice(&b.mean()[..D * r]),
+            (CaBank::Axes(b), Some(ax)) => {
+                let xm = &b.mean()[..D * r];
+                for a in 0..D {
+                    for run in 0..r {
+                        out[a * r + run] = (0..D).map(|d| ax.u[(a, d)] * xm[d * r + run]).sum();
+                    }
+                }
+            }
+            (CaBank::Axes(_), None) => unreachable!("the decoupled form has its basis"),
+        }
     }
 
     /// One step of edge `e` with direct observations only (`rkf-ca`): predict, correct the
     /// observed runs with `W_e`.
     pub(crate) fn step_direct(&mut self, e: usize, s: &Step<'_>) {
         let r = self.runs;
-        let bank = &mut self.banks[e];
-        bank.predict(&self.model);
-        let obs = s.faults.observed_row(e);
-        bank.correct_cov(&self.w_packed[e], obs);
-        bank.correct_mean(&s.y[e * D * r..(e + 1) * D * r], obs);
-        self.export(e);
+        self.predict(e);
+        self.correct(
+            e,
+            &s.y[e * D * r..(e + 1) * D * r],
+            s.faults.observed_row(e),
+        );
+    }
+
+    /// Entry `(d, d)` of the position block of edge `e`'s covariance in run `r` (in the
+    /// eigenbasis for the decoupled form: the diagonal changes, the trace does not).
+    #[inline]
+    fn position_var(&self, e: usize, d: usize, r: usize) -> f64 {
+        match (&self.banks[e], self.shared_cov(e)) {
+            (_, Some(CaBank::Full(sb))) => sb.cov_entry(packed_index(3 * D, d, d), 0),
+            (_, Some(CaBank::Axes(sb))) => sb.cov_entry(0, d),
+            (CaBank::Full(b), None) => b.cov_entry(packed_index(3 * D, d, d), r),
+            (CaBank::Axes(b), None) => b.cov_entry(0, d * self.runs + r),
+        }
     }
 
     /// `cov_trace`: per run, the position-block traces summed over the tracked edges.
     pub(crate) fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
         out.fill(0.0);
         let faults = s.faults.measurement_faults();
-        let n = 3 * D;
-        for (e, bank) in self.banks.iter().enumerate() {
+        for e in 0..self.banks.len() {
             for d in 0..D {
-                let k = packed_index(n, d, d);
                 for (r, o) in out.iter_mut().enumerate() {
                     if !faults || s.faults.tracked(e, r) {
-                        *o += bank.cov_entry(k, r);
+                        *o += self.position_var(e, d, r);
                     }
                 }
             }
@@ -281,7 +612,43 @@ impl<const D: usize> CaEdges<D> {
     /// `edge_cov_trace` of edge `e`: the position-block trace per run.
     pub(crate) fn edge_cov_trace(&self, e: usize, out: &mut [f64]) {
         for (r, o) in out.iter_mut().enumerate() {
-            *o = self.banks[e].position_trace(r);
+            *o = (0..D).map(|d| self.position_var(e, d, r)).sum();
+        }
+    }
+
+    /// The posterior covariance (3D × 3D) of edge `e` in run `r`, in the model's axes
+    /// (allocates; for tests and diagnostics).
+    pub(crate) fn covariance(&self, e: usize, r: usize) -> DMatrix<f64> {
+        let (bank, r) = match self.shared_cov(e) {
+            Some(sb) => (sb, 0),
+            None => (&self.banks[e], r),
+        };
+        let runs = if self.shared_cov(e).is_some() {
+            1
+        } else {
+            self.runs
+        };
+        match (bank, &self.axes) {
+            (CaBank::Full(b), _) => b.covariance(r),
+            (CaBank::Axes(b), Some(ax)) => {
+                let n = 3 * D;
+                let rot = DMatrix::from_fn(n, n, |a, c| {
+                    if a / D == c / D {
+                        ax.u[(a % D, c % D)]
+                    } else {
+                        0.0
+                    }
+                });
+                let inner = DMatrix::from_fn(n, n, |a, c| {
+                    if a % D == c % D {
+                        b.covariance(a % D * runs + r)[(a / D, c / D)]
+                    } else {
+                        0.0
+                    }
+                });
+                &rot * inner * rot.transpose()
+            }
+            (CaBank::Axes(_), None) => unreachable!("the decoupled form has its basis"),
         }
     }
 }
@@ -391,7 +758,7 @@ impl<const D: usize> RkfCa<D> {
 
     /// Posterior covariance (3D × 3D) of edge `e` in run `r`.
     pub fn covariance(&self, e: usize, r: usize) -> DMatrix<f64> {
-        self.ca.banks[e].covariance(r)
+        self.ca.covariance(e, r)
     }
 }
 
@@ -446,5 +813,141 @@ pub(crate) fn quantity_ca<const D: usize>(
             true
         }
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Scenario, ScenarioSpec};
+    use rand::{Rng, SeedableRng};
+    use rand_xoshiro::Xoshiro256PlusPlus;
+
+    fn model(meas_corr: f64) -> Model {
+        let text = format!(
+            "name = \"t\"\nestimators = [\"rkf-ca\"]\n[framework]\npreset = \"hexagon\"\n\
+             [sim]\ndt = 0.01\nsteps = 10\n[noise]\nsigma_v = 0.1\nmeas_corr = {meas_corr}\n"
+        );
+        let spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+        Scenario::from_spec(&spec, None)
+            .expect("valid")
+            .model()
+            .clone()
+    }
+
+    /// The decoupled form against the full filter: random availability, GA-RKF-like
+    /// observation covariances `c W_e + ψ I` and observations, several hundred steps (long
+    /// outages included). Covariances and estimates agree to rounding.
+    fn decoupled_vs_full(meas_corr: f64, runs: usize, seed: u64) -> (f64, f64) {
+        let m = model(meas_corr);
+        let mut full = CaEdges::<2>::new(&m, 1.0, 1, runs, false);
+        let mut axes = CaEdges::<2>::new(&m, 1.0, 1, runs, true);
+        assert!(!full.decoupled() && axes.decoupled());
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        let (mut dc, mut dx) = (0.0f64, 0.0f64);
+        let ne = full.edges.len();
+        for _ in 0..300 {
+            for e in 0..ne {
+                full.predict(e);
+                axes.predict(e);
+                for r in 0..runs {
+                    let observed = rng.random_bool(0.3);
+                    let (c, psi) = (rng.random_range(0.5..3.0), rng.random_range(0.0..0.01));
+                    let rr = full.w[e] * c + SMatrix::<f64, 2, 2>::identity() * psi;
+                    for edges in [&mut full, &mut axes] {
+                        edges.geo[r] = observed;
+                        for a in 0..2 {
+                            for b in a..2 {
+                                edges.rt[packed_index(2, a, b) * runs + r] = rr[(a, b)];
+                            }
+                        }
+                    }
+                    for a in 0..2 {
+                        let y = rng.random_range(-1.0..1.0);
+                        full.yt[a * runs + r] = y;
+                        axes.yt[a * runs + r] = y;
+                    }
+                }
+                let (y, none) = (vec![f64::NAN; 2 * runs], vec![false; runs]);
+                full.correct(e, &y, &none);
+                axes.correct(e, &y, &none);
+            }
+        }
+        for e in 0..ne {
+            for r in 0..runs {
+                let (cf, ca) = (full.covariance(e, r), axes.covariance(e, r));
+                dc = dc.max((&cf - &ca).amax() / cf.amax());
+            }
+        }
+        let scale = full.x.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        for (a, b) in full.x.iter().zip(&axes.x) {
+            dx = dx.max((a - b).abs() / scale);
+        }
+        (dc, dx)
+    }
+
+    /// A shared covariance gives the bits of per-run covariances: 150 steps observed in every
+    /// run (or in none), then steps with random losses, both forms.
+    #[test]
+    fn shared_covariances_give_the_bits_of_per_run_ones() {
+        for axes_ok in [true, false] {
+            let m = model(0.3);
+            let runs = 67; // two tiles, the second partly used
+            let mut shared = CaEdges::<2>::new(&m, 1.0, 1, runs, axes_ok);
+            let mut per_run = shared.clone();
+            per_run.unshare();
+            assert_eq!(shared.decoupled(), axes_ok);
+            assert!(shared.shared.iter().all(Option::is_some));
+            assert!(per_run.shared.iter().all(Option::is_none));
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
+            let ne = shared.edges.len();
+            for k in 0..300 {
+                for e in 0..ne {
+                    let observed: Vec<bool> = match k {
+                        0..50 => vec![true; runs],
+                        50..60 => vec![false; runs],
+                        60..150 => vec![true; runs],
+                        _ => (0..runs).map(|_| rng.random_bool(0.5)).collect(),
+                    };
+                    let y: Vec<f64> = (0..2 * runs).map(|_| rng.random_range(-1.0..1.0)).collect();
+                    for edges in [&mut shared, &mut per_run] {
+                        edges.predict(e);
+                        edges.correct(e, &y, &observed);
+                    }
+                }
+                if k == 149 {
+                    assert!(shared.shared.iter().all(Option::is_some), "still shared");
+                }
+            }
+            assert!(
+                shared.shared.iter().all(Option::is_none),
+                "per run after the losses"
+            );
+            for e in 0..ne {
+                for r in 0..runs {
+                    let (a, b) = (shared.covariance(e, r), per_run.covariance(e, r));
+                    assert!(a
+                        .iter()
+                        .zip(b.iter())
+                        .all(|(x, y)| x.to_bits() == y.to_bits()));
+                }
+            }
+            assert!(shared
+                .x
+                .iter()
+                .zip(&per_run.x)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+
+    #[test]
+    fn decoupled_axes_equal_the_full_filter() {
+        for (rho, runs, seed) in [(0.3, 3, 1), (0.0, 3, 2), (-0.6, 70, 3)] {
+            let (dc, dx) = decoupled_vs_full(rho, runs, seed);
+            assert!(
+                dc < 1e-10 && dx < 1e-10,
+                "ρ = {rho}: covariance {dc:e}, estimates {dx:e}"
+            );
+        }
     }
 }

@@ -223,27 +223,38 @@ impl World {
 
     /// The draws of one step, in the fixed per-run order.
     pub(crate) fn draw_step(&mut self) {
+        // Each run's stream draws in the documented order (η, then ξ, then the link and
+        // availability uniforms, each by row); the loops run the runs innermost so that the
+        // rows, runs innermost, are written contiguously (the same values as a loop over the
+        // runs outermost: every stream sees the same sequence of calls).
         let runs = self.rngs.len();
         let d = &mut self.draws;
-        for (lr, rng) in self.rngs.iter_mut().enumerate() {
-            if self.draw_eta {
-                for a in 0..self.md {
-                    d.eta[a * runs + lr] = rng.sample(StandardNormal);
+        let rngs = &mut self.rngs;
+        if self.draw_eta {
+            for row in d.eta[..self.md * runs].chunks_exact_mut(runs) {
+                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
+                    *v = rng.sample(StandardNormal);
                 }
             }
-            if self.draw_xi {
-                for a in 0..self.nd {
-                    d.xi[a * runs + lr] = rng.sample(StandardNormal);
+        }
+        if self.draw_xi {
+            for row in d.xi[..self.nd * runs].chunks_exact_mut(runs) {
+                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
+                    *v = rng.sample(StandardNormal);
                 }
             }
-            if self.draw_comm {
-                for e in 0..self.m {
-                    d.comm[e * runs + lr] = rng.random::<f64>();
+        }
+        if self.draw_comm {
+            for row in d.comm[..self.m * runs].chunks_exact_mut(runs) {
+                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
+                    *v = rng.random::<f64>();
                 }
             }
-            if self.draw_avail {
-                for e in 0..self.m {
-                    d.avail[e * runs + lr] = rng.random::<f64>();
+        }
+        if self.draw_avail {
+            for row in d.avail[..self.m * runs].chunks_exact_mut(runs) {
+                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
+                    *v = rng.random::<f64>();
                 }
             }
         }
