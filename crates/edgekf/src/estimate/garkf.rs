@@ -291,7 +291,10 @@ impl Configured for Config {
     }
 
     fn cost(&self, m: &Model) -> Cost {
-        let mut c = ca_cost(m);
+        let mut c = ca_cost(
+            m,
+            matches!(self.opt.ral, RalVariant::General | RalVariant::Translation),
+        );
         let d2 = (m.dim * m.dim) as f64;
         c.bytes_per_run += m.agents as f64 * 8.0 * (6.0 * d2 + 4.0);
         c.flops_per_run_step += m.num_edges() as f64 * 12.0 * d2 + m.agents as f64 * 40.0 * d2;

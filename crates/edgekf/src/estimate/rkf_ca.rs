@@ -154,7 +154,7 @@ impl Configured for Config {
     }
 
     fn cost(&self, m: &Model) -> Cost {
-        ca_cost(m)
+        ca_cost(m, true)
     }
 
     fn shared_gain(&self, _m: &Model) -> bool {
@@ -162,18 +162,37 @@ impl Configured for Config {
     }
 }
 
-/// The cost of the CA edge filters (the geometric part of GA-RKF adds ≈ 30 %).
-pub(crate) fn ca_cost(m: &Model) -> Cost {
+/// The cost of the CA edge filters (`axes_ok` as for [`CaEdges::new`]; the geometric part of
+/// GA-RKF adds its own).
+pub(crate) fn ca_cost(m: &Model, axes_ok: bool) -> Cost {
     let me = m.num_edges() as f64;
-    let n = 3.0 * m.dim as f64;
-    Cost {
-        bytes_per_run: me * 8.0 * (n * (n + 1.0) / 2.0 + n + n * m.dim as f64 + 2.0 * m.dim as f64),
-        bytes_shared: 0.0,
-        flops_per_run_step: me * (4.0 * n * n + 4.0 * n * m.dim as f64 * m.dim as f64),
-        // The tile kernels cost ≈ 4 µs per directed edge and step whatever the number of runs
-        // in the tile (measured on the hexagon with 2 runs: `garkf-fig11`, 14 s for 2.5·10⁶
-        // edge-steps), counted here at the cost model's 0.5 ns per operation.
-        flops_shared_step: me * 8000.0,
+    let d = m.dim as f64;
+    let n = 3.0 * d;
+    let decoupled = match m.dim {
+        1 => decouples::<1>(m, axes_ok),
+        2 => decouples::<2>(m, axes_ok),
+        _ => decouples::<3>(m, axes_ok),
+    };
+    if decoupled {
+        // D filters of 3 × 3 per edge and run: ≈ 45 ns per edge-run-step with the memory
+        // traffic of a 2,450-edge graph (`report_many_batches_timing`, D = 2), counted at the
+        // cost model's 0.5 ns per operation; a shared covariance costs little per step.
+        Cost {
+            bytes_per_run: me * 8.0 * (6.0 * d + n + 2.0 * d),
+            bytes_shared: 0.0,
+            flops_per_run_step: me * 45.0 * d,
+            flops_shared_step: me * 200.0,
+        }
+    } else {
+        Cost {
+            bytes_per_run: me * 8.0 * (n * (n + 1.0) / 2.0 + n + 2.0 * d),
+            bytes_shared: 0.0,
+            flops_per_run_step: me * (4.0 * n * n + 4.0 * n * d * d),
+            // The tile kernels cost ≈ 4 µs per directed edge and step whatever the number of
+            // runs in the tile (measured on the hexagon with 2 runs: `garkf-fig11`, 14 s for
+            // 2.5·10⁶ edge-steps), counted at the cost model's 0.5 ns per operation.
+            flops_shared_step: me * 8000.0,
+        }
     }
 }
 
@@ -273,6 +292,19 @@ impl<const D: usize> AxesBasis<D> {
     }
 }
 
+/// Whether a square matrix is `c·I` exactly.
+fn is_isotropic(p: &DMatrix<f64>) -> bool {
+    let n = p.nrows();
+    (0..n).all(|a| (0..n).all(|b| p[(a, b)] == if a == b { p[(0, 0)] } else { 0.0 }))
+}
+
+/// Whether [`CaEdges::new`] of `m` runs the decoupled form (`axes_ok` as there).
+pub(crate) fn decouples<const D: usize>(m: &Model, axes_ok: bool) -> bool {
+    axes_ok
+        && (0..m.num_edges()).all(|e| is_isotropic(&m.edge_p0(e, e)))
+        && common_axes::<D>(&m.r.iter().map(to_static::<D>).collect::<Vec<_>>()).is_some()
+}
+
 /// Relative size of the off-diagonal entries of `Uᵀ W U` below which `W` counts as diagonal in
 /// the basis `U` (rounding of the eigendecomposition is ≈ 1e-16).
 const AXES_TOL: f64 = 1e-12;
@@ -324,10 +356,7 @@ impl<const D: usize> CaEdges<D> {
             })
             .collect();
         let p0: Vec<DMatrix<f64>> = (0..ne).map(|e| m.edge_p0(e, e)).collect();
-        let isotropic = |p: &DMatrix<f64>| {
-            (0..D).all(|a| (0..D).all(|b| p[(a, b)] == if a == b { p[(0, 0)] } else { 0.0 }))
-        };
-        let axes = if axes_ok && p0.iter().all(isotropic) {
+        let axes = if axes_ok && p0.iter().all(is_isotropic) {
             common_axes(&w)
         } else {
             None
