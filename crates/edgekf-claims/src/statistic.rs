@@ -16,7 +16,9 @@ use nalgebra::{DMatrix, DVector};
 use crate::stats::{self, Estimate};
 use crate::study::Data;
 
-/// A time window `[from, to]` in seconds.
+/// A time window `[from, to]` in seconds. A *window mean* is the time average over the window's
+/// reported steps: each report weighted by the time since the previous report, so that the
+/// log-spaced reports of a transient do not outweigh the evenly spaced ones after it.
 pub type Window = (f64, f64);
 
 /// The first reported step (k = 1).
@@ -103,7 +105,7 @@ pub enum Statistic {
         /// Denominator window.
         second: Window,
     },
-    /// Ratio of the across-run standard deviations of `metric` (mean over the window's
+    /// Ratio of the across-run standard deviations of `metric` (time average over the window's
     /// reported steps of the standard deviation at each), jackknife over runs.
     StdRatio {
         /// Metric.
@@ -311,12 +313,23 @@ impl Filt<'_> {
         Ok(out)
     }
 
-    /// Per-unit window means.
+    /// The time each report of `w` stands for (see [`report_weights`]), one seed's reports; the
+    /// same reports for every seed of a study.
+    fn weights(&self, w: Window) -> Result<Vec<f64>, String> {
+        let res = self.results.first().ok_or("the study has no results")?;
+        Ok(report_weights(res, &idx(res, w)))
+    }
+
+    /// Per-unit window means, each report weighted by the time it stands for, so that a window
+    /// mean is a time average whatever the spacing of the reports (log-spaced early reports
+    /// would otherwise dominate a transient window).
     fn units(&self, label: &str, metric: &str, w: Window) -> Result<Vec<f64>, String> {
+        let wt = self.weights(w)?;
+        let total: f64 = wt.iter().sum();
         Ok(self
             .matrix(label, metric, w)?
             .iter()
-            .map(|row| row.iter().sum::<f64>() / row.len() as f64)
+            .map(|row| row.iter().zip(&wt).map(|(x, a)| x * a).sum::<f64>() / total)
             .collect())
     }
 
@@ -361,6 +374,18 @@ impl Filt<'_> {
     fn per_seed(&self, f: impl Fn(&Results) -> Result<f64, String>) -> Result<Vec<f64>, String> {
         self.results.iter().map(f).collect()
     }
+}
+
+/// The time each report in `ks` (indices into `res.steps`) stands for: from the previous report
+/// (or from t = 0 for the first) to its own time. Evenly spaced reports get equal weights, so a
+/// window of them gives the plain mean.
+fn report_weights(res: &Results, ks: &[usize]) -> Vec<f64> {
+    ks.iter()
+        .map(|&i| {
+            let prev = if i == 0 { 0 } else { res.steps[i - 1] };
+            (res.steps[i] - prev) as f64 * res.dt
+        })
+        .collect()
 }
 
 fn mean_of(rows: &[Vec<f64>], units: &[usize], k: usize) -> f64 {
@@ -520,10 +545,11 @@ impl Statistic {
                     f.matrix(num, metric, window)?,
                     f.matrix(den, metric, window)?,
                 );
+                let wt = f.weights(window)?;
                 let nk = a[0].len();
                 let e = stats::jackknife(a.len(), |u| {
-                    let sa: f64 = (0..nk).map(|k| std_of(&a, u, k)).sum();
-                    let sb: f64 = (0..nk).map(|k| std_of(&b, u, k)).sum();
+                    let sa: f64 = (0..nk).map(|k| wt[k] * std_of(&a, u, k)).sum();
+                    let sb: f64 = (0..nk).map(|k| wt[k] * std_of(&b, u, k)).sum();
                     sa / sb
                 });
                 plain(e)

@@ -365,7 +365,7 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;
 
     fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let json = serde_json::to_string_pretty(&FrameworkFile::from_framework(f))?;
+    let json = edgekf_io::to_json_pretty(&FrameworkFile::from_framework(f))?;
     let json_path = args.out.join("framework.json");
     write_atomic(&json_path, json.as_bytes())?;
     let png_path = args.out.join("framework.png");

@@ -87,7 +87,7 @@ fn parse(source: &str, text: &str) -> Result<ScenarioSpec> {
 
 /// The resolved scenario as JSON, checked to parse back to the identical spec (so a re-run reproduces the CSVs).
 fn resolved_json(sc: &Scenario) -> Result<String> {
-    let mut json = serde_json::to_string_pretty(&sc.resolved)
+    let mut json = edgekf_io::to_json_pretty(&sc.resolved)
         .context("cannot serialise the resolved scenario")?;
     json.push('\n');
     let back: ScenarioSpec =
@@ -355,11 +355,11 @@ mod tests {
         }
         let team = std::fs::read_to_string(a.join("team.csv")).unwrap();
         assert!(team.starts_with("time,quantity,value\n0,pc_x,0.3333333333333333\n"));
-        // 101 samples × 5 quantities + header.
-        assert_eq!(team.lines().count(), 1 + 101 * 5);
+        // 51 samples (1 s on the 20 ms grid) × 5 quantities + header.
+        assert_eq!(team.lines().count(), 1 + 51 * 5);
         let robots = std::fs::read_to_string(a.join("robots.csv")).unwrap();
         // per robot: 2 + 2n + 2m + n + m + 1 = 27 quantities.
-        assert_eq!(robots.lines().count(), 1 + 101 * 3 * 27);
+        assert_eq!(robots.lines().count(), 1 + 51 * 3 * 27);
         assert!(robots.lines().nth(1).unwrap() == "0,0,px,0");
         for d in [a, b] {
             let _ = std::fs::remove_dir_all(d);

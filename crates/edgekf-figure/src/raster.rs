@@ -7,8 +7,6 @@
 
 use std::path::Path;
 
-use plotters::prelude::{BitMapBackend, DrawingBackend};
-
 use super::FigureError;
 
 /// An sRGB colour.
@@ -74,7 +72,7 @@ impl PxRect {
     }
 }
 
-/// An RGB image that figures are drawn on; saved as PNG through plotters' bitmap backend.
+/// An RGB image that figures are drawn on; saved as PNG (indexed when it has at most 256 colours).
 #[derive(Clone, Debug)]
 pub struct Canvas {
     w: u32,
@@ -207,17 +205,69 @@ impl Canvas {
         cov.composite(self, colour, 1.0);
         PxRect::new(f64::from(x0), f64::from(y0), f64::from(x1), f64::from(y1))
     }
-    /// Writes the canvas as a PNG file (through plotters' bitmap backend).
+    /// Writes the canvas as a PNG file: 8-bit indexed when it has at most 256 colours (exact, the
+    /// same pixels), RGB otherwise, at the encoder's best compression.
     ///
     /// # Errors
     /// When the file cannot be written or encoded.
     pub fn save_png(&self, path: &Path) -> Result<(), FigureError> {
-        let mut b = BitMapBackend::new(path, (self.w, self.h));
-        b.blit_bitmap((0, 0), (self.w, self.h), &self.px)
-            .map_err(|e| FigureError::Encode(format!("{}: {e}", path.display())))?;
-        b.present()
-            .map_err(|e| FigureError::Encode(format!("{}: {e}", path.display())))?;
+        let fail =
+            |e: &dyn std::fmt::Display| FigureError::Encode(format!("{}: {e}", path.display()));
+        let file = std::fs::File::create(path).map_err(|e| fail(&e))?;
+        let bytes = self.encode_png().map_err(|e| fail(&e))?;
+        let mut w = std::io::BufWriter::new(file);
+        std::io::Write::write_all(&mut w, &bytes).map_err(|e| fail(&e))?;
+        std::io::Write::flush(&mut w).map_err(|e| fail(&e))?;
         Ok(())
+    }
+
+    /// The canvas encoded as PNG bytes (see [`Canvas::save_png`]).
+    ///
+    /// # Errors
+    /// When the encoder fails.
+    pub fn encode_png(&self) -> Result<Vec<u8>, png::EncodingError> {
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, self.w, self.h);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Best);
+        let data = match self.palette() {
+            Some((palette, index)) => {
+                enc.set_color(png::ColorType::Indexed);
+                enc.set_palette(palette);
+                enc.set_filter(png::FilterType::NoFilter);
+                index
+            }
+            None => {
+                enc.set_color(png::ColorType::Rgb);
+                enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+                self.px.clone()
+            }
+        };
+        let mut writer = enc.write_header()?;
+        writer.write_image_data(&data)?;
+        writer.finish()?;
+        Ok(out)
+    }
+
+    /// The palette (RGB triples) and per-pixel indices, when the canvas has at most 256 colours.
+    fn palette(&self) -> Option<(Vec<u8>, Vec<u8>)> {
+        let mut seen: std::collections::HashMap<[u8; 3], u8> = std::collections::HashMap::new();
+        let mut palette = Vec::new();
+        let mut index = Vec::with_capacity(self.px.len() / 3);
+        for p in self.px.chunks_exact(3) {
+            let key = [p[0], p[1], p[2]];
+            let i = match seen.get(&key) {
+                Some(&i) => i,
+                None => {
+                    let i = u8::try_from(seen.len()).ok()?;
+                    seen.insert(key, i);
+                    palette.extend_from_slice(&key);
+                    i
+                }
+            };
+            index.push(i);
+        }
+        Some((palette, index))
     }
 }
 

@@ -385,12 +385,78 @@ pub fn inputs_csv(res: &Results, dim: usize, agents: usize, of: &[usize]) -> Str
     s
 }
 
-/// `scenario.json`: the resolved scenario (schema `edgekf.scenario/1`), pretty-printed.
+/// `scenario.json`: the resolved scenario (schema `edgekf.scenario/1`), pretty-printed by
+/// [`to_json_pretty`].
 ///
 /// # Errors
 /// When the scenario cannot be serialised (not expected for a checked scenario).
 pub fn scenario_json(sc: &Scenario) -> Result<String> {
-    serde_json::to_string_pretty(&sc.to_resolved()).context("cannot serialise the scenario")
+    to_json_pretty(&sc.to_resolved()).context("cannot serialise the scenario")
+}
+
+/// JSON indented like `serde_json::to_string_pretty` (two spaces, keys in their order), except
+/// that an array whose items are all numbers, strings, booleans or nulls is written on one line:
+/// a matrix reads as one row per line. Numbers are written exactly as serde_json writes them
+/// (shortest round trip), so the text parses back to the same values.
+///
+/// # Errors
+/// When `value` cannot be represented as JSON.
+pub fn to_json_pretty<T: serde::Serialize + ?Sized>(value: &T) -> serde_json::Result<String> {
+    fn scalar(v: &serde_json::Value) -> bool {
+        !matches!(
+            v,
+            serde_json::Value::Array(_) | serde_json::Value::Object(_)
+        )
+    }
+    fn indent(out: &mut String, depth: usize) {
+        for _ in 0..depth {
+            out.push_str("  ");
+        }
+    }
+    fn write(out: &mut String, v: &serde_json::Value, depth: usize) -> serde_json::Result<()> {
+        match v {
+            serde_json::Value::Array(items) if items.is_empty() => out.push_str("[]"),
+            serde_json::Value::Array(items) if items.iter().all(scalar) => {
+                out.push('[');
+                for (k, x) in items.iter().enumerate() {
+                    if k > 0 {
+                        out.push_str(", ");
+                    }
+                    out.push_str(&serde_json::to_string(x)?);
+                }
+                out.push(']');
+            }
+            serde_json::Value::Array(items) => {
+                out.push_str("[\n");
+                for (k, x) in items.iter().enumerate() {
+                    indent(out, depth + 1);
+                    write(out, x, depth + 1)?;
+                    out.push_str(if k + 1 < items.len() { ",\n" } else { "\n" });
+                }
+                indent(out, depth);
+                out.push(']');
+            }
+            serde_json::Value::Object(map) if map.is_empty() => out.push_str("{}"),
+            serde_json::Value::Object(map) => {
+                out.push_str("{\n");
+                for (k, (key, x)) in map.iter().enumerate() {
+                    indent(out, depth + 1);
+                    out.push_str(&serde_json::to_string(key)?);
+                    out.push_str(": ");
+                    write(out, x, depth + 1)?;
+                    out.push_str(if k + 1 < map.len() { ",\n" } else { "\n" });
+                }
+                indent(out, depth);
+                out.push('}');
+            }
+            x => out.push_str(&serde_json::to_string(x)?),
+        }
+        Ok(())
+    }
+    let v = serde_json::to_value(value)?;
+    let mut out = String::new();
+    write(&mut out, &v, 0)?;
+    Ok(out)
 }
 
 /// The agents whose inputs the scenario's input figures show (sorted, without repeats): the
