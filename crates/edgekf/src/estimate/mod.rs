@@ -142,6 +142,29 @@ impl Faults {
         p_fail <= 0.0 || self.comm[e * self.runs + r] >= p_fail
     }
 
+    /// `!`[`Faults::input_arrives`] for every run of edge `e`, written to `lost`: the runs in
+    /// which agent i must predict neighbour j's input this step. Branch-free over the runs.
+    ///
+    /// # Panics
+    /// When `lost` is not one entry per run.
+    #[inline]
+    pub fn inputs_lost(&self, e: usize, p_fail: f64, lost: &mut [bool]) {
+        let observed = self.observed_row(e);
+        assert_eq!(lost.len(), observed.len(), "one entry per run");
+        if p_fail >= 1.0 {
+            lost.fill(true);
+        } else if p_fail <= 0.0 {
+            for (l, &o) in lost.iter_mut().zip(observed) {
+                *l = !o;
+            }
+        } else {
+            let comm = &self.comm[e * self.runs..(e + 1) * self.runs];
+            for ((l, &o), &c) in lost.iter_mut().zip(observed).zip(comm) {
+                *l = !(o & (c >= p_fail));
+            }
+        }
+    }
+
     /// Whether agent `i` is present (has not departed) in run `r`.
     #[inline]
     pub fn present(&self, i: usize, r: usize) -> bool {

@@ -449,11 +449,10 @@ impl<const D: usize> Rkf<D> {
             unreachable!("per-run path")
         };
         for (e, &(i, j)) in self.edges.iter().enumerate() {
-            // Faults of this edge, then the prediction increments `Δt (u^i − û^j)` per run.
-            for r in 0..runs {
-                observed[r] = s.faults.observed(e, r);
-                lost[r] = !s.faults.input_arrives(e, r, p_fail);
-            }
+            // Faults of this edge, then the prediction increments `Δt (u^i − û^j)` per run; every
+            // loop below is branch-free over the runs (the faults select, they do not branch).
+            observed.copy_from_slice(s.faults.observed_row(e));
+            s.faults.inputs_lost(e, p_fail, lost);
             for a in 0..D {
                 let out = &mut inc[a * runs..(a + 1) * runs];
                 let du = &s.du[(e * D + a) * runs..(e * D + a + 1) * runs];
@@ -465,21 +464,23 @@ impl<const D: usize> Rkf<D> {
                         }
                     }
                     Input::Known => {
-                        for r in 0..runs {
-                            out[r] = if lost[r] { dt * ui[r] } else { du[r] };
+                        for (((o, &l), &u), &d) in out.iter_mut().zip(lost.iter()).zip(ui).zip(du) {
+                            *o = super::batch::pick(l, dt * u, d);
                         }
                     }
                     Input::Ar { .. } => {
-                        for r in 0..runs {
-                            out[r] = if lost[r] {
-                                let mut uj = 0.0;
-                                for (l, c) in self.coeffs.iter().enumerate() {
-                                    uj += c[a] * self.hist[l + 1][(j * D + a) * runs + r];
-                                }
-                                dt * (self.hist[0][(i * D + a) * runs + r] - uj)
-                            } else {
-                                du[r]
-                            };
+                        // û^j = Σ_l a_l u^j_{k−1−l}, summed over the lags in order from 0.0
+                        // (the bits of `ar_increment_of`), in `out` for every run.
+                        out.fill(0.0);
+                        for (l, c) in self.coeffs.iter().enumerate() {
+                            let hj = &self.hist[l + 1][(j * D + a) * runs..(j * D + a + 1) * runs];
+                            for (o, &h) in out.iter_mut().zip(hj) {
+                                *o += c[a] * h;
+                            }
+                        }
+                        let hi = &self.hist[0][(i * D + a) * runs..(i * D + a + 1) * runs];
+                        for (((o, &l), &u), &d) in out.iter_mut().zip(lost.iter()).zip(hi).zip(du) {
+                            *o = super::batch::pick(l, dt * (u - *o), d);
                         }
                     }
                 }

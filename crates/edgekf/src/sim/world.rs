@@ -224,41 +224,44 @@ impl World {
     /// The draws of one step, in the fixed per-run order.
     pub(crate) fn draw_step(&mut self) {
         // Each run's stream draws in the documented order (η, then ξ, then the link and
-        // availability uniforms, each by row); the loops run the runs innermost so that the
-        // rows, runs innermost, are written contiguously (the same values as a loop over the
-        // runs outermost: every stream sees the same sequence of calls).
+        // availability uniforms, each by row); see `fill_rows` for the loop order.
         let runs = self.rngs.len();
         let d = &mut self.draws;
         let rngs = &mut self.rngs;
         if self.draw_eta {
-            for row in d.eta[..self.md * runs].chunks_exact_mut(runs) {
-                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
-                    *v = rng.sample(StandardNormal);
-                }
-            }
+            fill_rows(&mut d.eta[..self.md * runs], rngs, |g| g.sample(StandardNormal));
         }
         if self.draw_xi {
-            for row in d.xi[..self.nd * runs].chunks_exact_mut(runs) {
-                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
-                    *v = rng.sample(StandardNormal);
-                }
-            }
+            fill_rows(&mut d.xi[..self.nd * runs], rngs, |g| g.sample(StandardNormal));
         }
         if self.draw_comm {
-            for row in d.comm[..self.m * runs].chunks_exact_mut(runs) {
-                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
-                    *v = rng.random::<f64>();
-                }
-            }
+            fill_rows(&mut d.comm[..self.m * runs], rngs, |g| g.random::<f64>());
         }
         if self.draw_avail {
-            for row in d.avail[..self.m * runs].chunks_exact_mut(runs) {
-                for (v, rng) in row.iter_mut().zip(rngs.iter_mut()) {
-                    *v = rng.random::<f64>();
-                }
-            }
+            fill_rows(&mut d.avail[..self.m * runs], rngs, |g| g.random::<f64>());
         }
     }
+}
+
+/// Fills `buf` (rows × runs, runs innermost) with `draw`, each run's entries from its own
+/// stream in row order. The loop runs over the runs outermost with the stream's state copied
+/// into a local, so that it stays in registers between draws (the same values as any other
+/// loop order: every stream sees the same sequence of calls).
+#[inline]
+fn fill_rows(
+    buf: &mut [f64],
+    rngs: &mut [Xoshiro256PlusPlus],
+    draw: impl Fn(&mut Xoshiro256PlusPlus) -> f64,
+) {
+    let runs = rngs.len();
+    for (r, rng) in rngs.iter_mut().enumerate() {
+        let mut g = rng.clone();
+        for v in buf.iter_mut().skip(r).step_by(runs) {
+            *v = draw(&mut g);
+        }
+        *rng = g;
+    }
+
 }
 
 /// The targets at step k and k + 1, recomputed each step from the trajectory.
