@@ -147,7 +147,7 @@ impl Faults {
     ///
     /// # Panics
     /// When `lost` is not one entry per run.
-    #[inline]
+    #[inline(always)]
     pub fn inputs_lost(&self, e: usize, p_fail: f64, lost: &mut [bool]) {
         let observed = self.observed_row(e);
         assert_eq!(lost.len(), observed.len(), "one entry per run");

@@ -229,10 +229,14 @@ impl World {
         let d = &mut self.draws;
         let rngs = &mut self.rngs;
         if self.draw_eta {
-            fill_rows(&mut d.eta[..self.md * runs], rngs, |g| g.sample(StandardNormal));
+            fill_rows(&mut d.eta[..self.md * runs], rngs, |g| {
+                g.sample(StandardNormal)
+            });
         }
         if self.draw_xi {
-            fill_rows(&mut d.xi[..self.nd * runs], rngs, |g| g.sample(StandardNormal));
+            fill_rows(&mut d.xi[..self.nd * runs], rngs, |g| {
+                g.sample(StandardNormal)
+            });
         }
         if self.draw_comm {
             fill_rows(&mut d.comm[..self.m * runs], rngs, |g| g.random::<f64>());
@@ -261,7 +265,6 @@ fn fill_rows(
         }
         *rng = g;
     }
-
 }
 
 /// The targets at step k and k + 1, recomputed each step from the trajectory.
