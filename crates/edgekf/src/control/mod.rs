@@ -59,6 +59,16 @@ pub enum LeaderMode {
     Target,
 }
 
+/// Sets target-tracking leaders on their target: `z_i = z*_i` for every run (N·D rows × runs,
+/// runs innermost; `target` agent-major). Li & Rajan §II-C: the leaders know `Z*(t)`.
+pub fn pin_leaders(z: &mut [f64], leaders: &[usize], target: &[f64], d: usize, runs: usize) {
+    for &i in leaders {
+        for a in 0..d {
+            z[(i * d + a) * runs..(i * d + a + 1) * runs].fill(target[i * d + a]);
+        }
+    }
+}
+
 /// The role of an agent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Role {

@@ -24,9 +24,14 @@
 //! non-finite is stopped: its [`Outcome`] says where and why, and its series end there.
 
 pub mod cost;
+pub(crate) mod divergence;
 pub(crate) mod faults;
+pub(crate) mod lane;
 pub mod metrics;
+pub(crate) mod motion;
+pub(crate) mod observe;
 pub(crate) mod sensing;
+pub(crate) mod stages;
 pub mod stats;
 pub mod sweep;
 pub mod world;
@@ -35,15 +40,12 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::control::{ControlInput, Controller, LeaderMode};
-use crate::estimate::{Estimator, Step};
-use crate::scenario::{Feedback, InitAround, Scenario};
+use crate::scenario::Scenario;
 pub use cost::{cost, StudyCost};
-use faults::FaultStage;
-use metrics::{metrics_for, Measure, Metric};
-use sensing::Sensing;
+use divergence::Stop;
+use lane::{At, Context, Lane};
+use stages::Shared;
 pub use stats::Series;
-use world::{Factor, Targets, World};
 
 /// Progress and cancellation hooks (the engine never prints).
 pub trait Observer: Sync {
@@ -181,40 +183,7 @@ impl Results {
         parts.sort_by_key(|p| p.runs.start);
         let first = parts.first().ok_or(MergeError::Empty)?;
         let total = first.total_runs;
-        let mut next = 0;
-        for p in &parts {
-            if p.steps != first.steps
-                || p.dt.to_bits() != first.dt.to_bits()
-                || p.total_runs != total
-                || p.paths_run != first.paths_run
-                || p.labels() != first.labels()
-                || p.estimators
-                    .iter()
-                    .zip(&first.estimators)
-                    .any(|(a, b)| a.metrics != b.metrics || a.kind != b.kind)
-            {
-                return Err(MergeError::Mismatch(format!(
-                    "part with runs {}..{} has other steps, estimators or metrics",
-                    p.runs.start, p.runs.end
-                )));
-            }
-            if p.runs.start != next {
-                return Err(MergeError::Coverage {
-                    total,
-                    detail: format!(
-                        "a part starts at run {} where run {next} was expected",
-                        p.runs.start
-                    ),
-                });
-            }
-            next = p.runs.end;
-        }
-        if next != total {
-            return Err(MergeError::Coverage {
-                total,
-                detail: format!("the parts end at run {next}"),
-            });
-        }
+        check_parts(&parts, first)?;
         let nr = first.steps.len();
         let mut out = Results {
             steps: first.steps.clone(),
@@ -233,13 +202,7 @@ impl Results {
             let mut inputs = Vec::new();
             for p in &parts {
                 let pe = &p.estimators[e];
-                let len = p.runs.len();
-                for (m, v) in pe.values.iter().enumerate() {
-                    for k in 0..nr {
-                        values[m][k * total + p.runs.start..k * total + p.runs.end]
-                            .copy_from_slice(&v[k * len..(k + 1) * len]);
-                    }
-                }
+                place(&mut values, &pe.values, nr, total, p.runs.clone());
                 if let Outcome::Diverged { .. } = pe.outcome {
                     if best.is_none_or(|(v, _)| pe.valid < v) {
                         best = Some((pe.valid, &pe.outcome));
@@ -329,14 +292,92 @@ pub fn run_range(
     Ok(assemble(sc, range, parts, opt))
 }
 
+/// Checks that shards are of one study and cover its runs once, in order.
+fn check_parts(parts: &[Results], first: &Results) -> Result<(), MergeError> {
+    let total = first.total_runs;
+    let mut next = 0;
+    for p in parts {
+        let same = p.steps == first.steps
+            && p.dt.to_bits() == first.dt.to_bits()
+            && p.total_runs == total
+            && p.paths_run == first.paths_run
+            && p.labels() == first.labels()
+            && p.estimators
+                .iter()
+                .zip(&first.estimators)
+                .all(|(a, b)| a.metrics == b.metrics && a.kind == b.kind);
+        if !same {
+            return Err(MergeError::Mismatch(format!(
+                "part with runs {}..{} has other steps, estimators or metrics",
+                p.runs.start, p.runs.end
+            )));
+        }
+        if p.runs.start != next {
+            return Err(MergeError::Coverage {
+                total,
+                detail: format!(
+                    "a part starts at run {} where run {next} was expected",
+                    p.runs.start
+                ),
+            });
+        }
+        next = p.runs.end;
+    }
+    if next != total {
+        return Err(MergeError::Coverage {
+            total,
+            detail: format!("the parts end at run {next}"),
+        });
+    }
+    Ok(())
+}
+
+/// Copies a part's per-metric values `[report · len + run]` into the whole's
+/// `[report · total + run]`, at the whole's runs `at`.
+fn place(whole: &mut [Vec<f64>], part: &[Vec<f64>], reports: usize, total: usize, at: Range<usize>) {
+    let len = at.len();
+    for (w, v) in whole.iter_mut().zip(part) {
+        for k in 0..reports {
+            w[k * total + at.start..k * total + at.end].copy_from_slice(&v[k * len..(k + 1) * len]);
+        }
+    }
+}
+
+/// The inputs' autocovariance `[est][d][τ]`: per-run sums reduced in run order, so any thread
+/// count gives the same bits.
+fn reduce_acov(sc: &Scenario, parts: &[Chunk], runs: usize, opt: Options) -> Vec<Vec<Vec<f64>>> {
+    let d = sc.framework().dim();
+    // Every step from `input_from` on adds N values per run (exact in f64).
+    let window = (sc.steps() + 1).saturating_sub(opt.input_from.max(1));
+    let count = (sc.framework().agents() * runs * window) as f64;
+    (0..sc.estimators().len())
+        .map(|e| {
+            let mut per = vec![vec![0.0; opt.input_lags + 1]; d];
+            for (dd, row) in per.iter_mut().enumerate() {
+                for (tau, v) in row.iter_mut().enumerate() {
+                    let mut sum = 0.0;
+                    for part in parts {
+                        let len = part.range.len();
+                        for r in 0..len {
+                            sum += part.lanes[e].acov[(tau * d + dd) * len + r];
+                        }
+                    }
+                    *v = sum / count;
+                }
+            }
+            per
+        })
+        .collect()
+}
+
 /// A chunk's results.
 struct Chunk {
     range: Range<usize>,
     lanes: Vec<LaneOut>,
-    acov_count: f64,
 }
 
-struct LaneOut {
+/// One estimator's results over a chunk of runs.
+pub(crate) struct LaneOut {
     values: Vec<Vec<f64>>,
     stop: Option<Stop>,
     paths: Vec<f64>,
@@ -344,20 +385,10 @@ struct LaneOut {
     acov: Vec<f64>,
 }
 
-#[derive(Debug, Clone)]
-struct Stop {
-    /// First invalid report index.
-    report: usize,
-    step: usize,
-    run: usize,
-    cause: String,
-}
-
 fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options) -> Results {
     let steps = sc.report_steps();
     let nr = steps.len();
     let runs = range.len();
-    let d = sc.framework().dim();
     let mut estimators = Vec::with_capacity(sc.estimators().len());
     for (e, def) in sc.estimators().iter().enumerate() {
         let names: Vec<String> = sc.metrics_of(def).iter().map(|m| m.to_string()).collect();
@@ -367,17 +398,10 @@ fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options)
         let mut inputs = Vec::new();
         for part in &parts {
             let lane = &part.lanes[e];
-            let (off, len) = (part.range.start - range.start, part.range.len());
-            for (m, v) in lane.values.iter().enumerate() {
-                for k in 0..nr {
-                    values[m][k * runs + off..k * runs + off + len]
-                        .copy_from_slice(&v[k * len..(k + 1) * len]);
-                }
-            }
+            let off = part.range.start - range.start;
+            place(&mut values, &lane.values, nr, runs, off..off + part.range.len());
             if let Some(s) = &lane.stop {
-                let better =
-                    stop.is_none_or(|b| (s.report, s.step, s.run) < (b.report, b.step, b.run));
-                if better {
+                if stop.is_none_or(|b| s.before(b)) {
                     stop = Some(s);
                 }
             }
@@ -405,27 +429,11 @@ fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options)
             inputs,
         });
     }
-    // Autocovariance: per-run sums reduced in run order, so any thread count gives the same bits.
-    let mut input_acov = Vec::new();
-    if opt.input_lags > 0 {
-        let count: f64 = parts.iter().map(|p| p.acov_count).sum();
-        for e in 0..sc.estimators().len() {
-            let mut per = vec![vec![0.0; opt.input_lags + 1]; d];
-            for (dd, row) in per.iter_mut().enumerate() {
-                for (tau, v) in row.iter_mut().enumerate() {
-                    let mut sum = 0.0;
-                    for part in &parts {
-                        let len = part.range.len();
-                        for r in 0..len {
-                            sum += part.lanes[e].acov[(tau * d + dd) * len + r];
-                        }
-                    }
-                    *v = sum / count;
-                }
-            }
-            input_acov.push(per);
-        }
-    }
+    let input_acov = if opt.input_lags > 0 {
+        reduce_acov(sc, &parts, runs, opt)
+    } else {
+        Vec::new()
+    };
     Results {
         steps,
         dt: sc.dt(),
@@ -437,358 +445,72 @@ fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options)
     }
 }
 
-/// One estimator's closed loop over a chunk of runs.
-struct Lane {
-    est: Box<dyn Estimator>,
-    ctrl: Controller,
-    noise: usize,
-    metrics: Vec<Box<dyn Metric>>,
-    z: Vec<f64>,
-    u: Vec<f64>,
-    u_next: Vec<f64>,
-    du: Vec<f64>,
-    x: Vec<f64>,
-    y: Vec<f64>,
-    out: LaneOut,
-    /// Past inputs, newest first (only with `input_lags`).
-    uhist: Vec<Vec<f64>>,
-}
-
+/// The runs `range` in lockstep: the shared stages, then each estimator's loop, step by step.
 fn run_chunk(
     sc: &Scenario,
     range: Range<usize>,
     obs: &dyn Observer,
     opt: Options,
 ) -> Option<Chunk> {
-    let fw = sc.framework();
-    let model = sc.model();
-    let g = fw.graph();
-    let d = fw.dim();
-    let (n, m) = (g.agents(), g.num_edges());
-    let runs = range.len();
-    let (nd, md) = (n * d, m * d);
-    let nr = sc.report_count();
-    let dt = sc.dt();
-    let report = sc.report_steps();
-
-    // Stages.
-    let q_factor = Factor::of(&model.q, d);
-    let r_active = model.r.iter().any(|r| r.iter().any(|&v| v != 0.0));
-    let comm_active = sc.estimators().iter().any(|e| {
-        e.config()
-            .link_failure()
-            .is_some_and(|p| p > 0.0 && p < 1.0)
-    });
-    let plan = sc.faults();
-    let avail_active = plan.availability > 0.0 && plan.availability < 1.0;
-    let mut world = World::new(
-        sc.seed(),
-        range.clone(),
-        m,
-        md,
-        nd,
-        r_active,
-        !q_factor.is_zero(),
-        comm_active,
-        avail_active,
-    );
-    let mut z0 = vec![0.0; nd * runs];
-    world.initial_positions(sc.init_mean(), &model.p, &mut z0);
-    let random = match plan.random_departures {
-        Some((count, _)) if count > 0 => {
-            let followers: Vec<usize> = (0..n).filter(|i| !fw.leaders().contains(i)).collect();
-            world.subsets(&followers, count)
-        }
-        _ => vec![Vec::new(); runs],
-    };
-    let mut fstage = FaultStage::new(plan, n, g.edges(), runs, random, comm_active);
-    let mut t_values: Vec<usize> = sc.estimators().iter().map(|e| e.samples()).collect();
-    t_values.sort_unstable();
-    t_values.dedup();
-    let mut sensing = Sensing::new(&model.r, d, t_values, runs);
-    let traj = sc.trajectory();
-    let mut targets = traj.map(|_| Targets::new(n, d));
-    let target_leaders = matches!(sc.leader_mode(), Some(LeaderMode::Target));
-    let leaders = fw.leaders().to_vec();
-    if let (Some(t), Some(tg)) = (traj, targets.as_mut()) {
-        // Step 1's target; target-tracking leaders start on it.
-        tg.update(t, fw.config(), d, 1, dt);
-        if target_leaders {
-            for &i in &leaders {
-                for a in 0..d {
-                    z0[(i * d + a) * runs..(i * d + a + 1) * runs]
-                        .fill(tg.now.positions[i * d + a]);
-                }
-            }
-        }
-    }
-    if sc.init_around() == InitAround::Target {
-        // Around each agent's place: its target at step 1, else its configuration point
-        // (the draws are those of a start around the origin, shifted).
-        let place = targets
-            .as_ref()
-            .map_or(fw.config(), |tg| &tg.now.positions[..]);
-        for (row, &p) in place.iter().enumerate() {
-            if target_leaders && traj.is_some() && leaders.contains(&(row / d)) {
-                continue; // already on the target
-            }
-            for v in &mut z0[row * runs..(row + 1) * runs] {
-                *v += p;
-            }
-        }
-    }
-    let mut w = vec![0.0; nd * runs];
+    let (mut shared, z0) = Shared::new(sc, range.clone());
+    let cx = Context::new(sc, &shared, &range);
     let record = range
         .contains(&sc.paths_run())
         .then(|| sc.paths_run() - range.start);
-    let lags = opt.input_lags;
-
     let mut lanes: Vec<Lane> = sc
         .estimators()
         .iter()
-        .map(|def| {
-            let metrics = metrics_for(sc, def);
-            let nm = metrics.len();
-            Lane {
-                est: def.config().build(model, def.samples(), runs),
-                ctrl: Controller::new(
-                    fw,
-                    sc.law(),
-                    sc.leader_mode().unwrap_or(LeaderMode::Target),
-                    dt,
-                    runs,
-                ),
-                noise: sensing.index_of(def.samples()),
-                metrics,
-                z: z0.clone(),
-                u: vec![0.0; nd * runs],
-                u_next: vec![0.0; nd * runs],
-                du: vec![0.0; md * runs],
-                x: vec![0.0; md * runs],
-                y: vec![0.0; md * runs],
-                out: LaneOut {
-                    values: vec![vec![f64::NAN; nr * runs]; nm],
-                    stop: None,
-                    paths: Vec::with_capacity(if record.is_some() { nr * nd } else { 0 }),
-                    inputs: Vec::with_capacity(if record.is_some() { nr * nd } else { 0 }),
-                    acov: vec![0.0; if lags > 0 { (lags + 1) * d * runs } else { 0 }],
-                },
-                uhist: vec![vec![0.0; if lags > 0 { nd * runs } else { 0 }]; lags + 1],
-            }
-        })
+        .map(|def| Lane::new(sc, def, &shared, &z0, record, opt))
         .collect();
-
-    let edges = g.edges();
-    let hint = sc.divergence_hint();
-    let mut next_report = 0;
-    let mut acov_count = 0.0;
-    let progress_every = 500;
-    let faults_active = plan.any();
-
+    let report = sc.report_steps();
+    let mut progress = Progress::new(obs, range.len(), sc.steps());
+    let mut index = 0;
     for k in 1..=sc.steps() {
-        // 1. World.
-        world.draw_step();
-        if !q_factor.is_zero() {
-            q_factor.apply(&world.draws.xi, &mut w, runs);
+        shared.advance(k);
+        let at = At {
+            k,
+            index,
+            now: report.get(index) == Some(&k),
+        };
+        for lane in lanes.iter_mut().filter(|l| l.running()) {
+            lane.step(at, &shared, &cx);
         }
-        if let (Some(t), Some(tg)) = (traj, targets.as_mut()) {
-            if k > 1 {
-                tg.update(t, fw.config(), d, k, dt);
-            }
-        }
-        // 2. Faults. 3. Sensing.
-        fstage.update(k, &world.draws.avail, &world.draws.comm);
-        if r_active {
-            sensing.update(&world.draws.eta);
-        }
-        let is_report = next_report < nr && report[next_report] == k;
-        for lane in lanes.iter_mut() {
-            if lane.out.stop.is_some() {
-                continue;
-            }
-            // True edges, measurements and prediction increments.
-            let vbar = &sensing.vbar[lane.noise];
-            for (e, &(i, j)) in edges.iter().enumerate() {
-                if d == 2 {
-                    // Both coordinates of an edge in one pass over the runs.
-                    let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
-                    let (x0, x1) = lane.x[re..re + 2 * runs].split_at_mut(runs);
-                    let (y0, y1) = lane.y[re..re + 2 * runs].split_at_mut(runs);
-                    let (d0, d1) = lane.du[re..re + 2 * runs].split_at_mut(runs);
-                    let (zi, zj) = (&lane.z[ri..ri + 2 * runs], &lane.z[rj..rj + 2 * runs]);
-                    let (ui, uj) = (&lane.u[ri..ri + 2 * runs], &lane.u[rj..rj + 2 * runs]);
-                    let v = &vbar[re..re + 2 * runs];
-                    for r in 0..runs {
-                        let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
-                        x0[r] = a;
-                        x1[r] = b;
-                        y0[r] = a + v[r];
-                        y1[r] = b + v[runs + r];
-                        d0[r] = dt * (ui[r] - uj[r]);
-                        d1[r] = dt * (ui[runs + r] - uj[runs + r]);
-                    }
-                    continue;
-                }
-                for a in 0..d {
-                    let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
-                    let (zi, zj) = (&lane.z[ri..ri + runs], &lane.z[rj..rj + runs]);
-                    let (ui, uj) = (&lane.u[ri..ri + runs], &lane.u[rj..rj + runs]);
-                    let v = &vbar[re..re + runs];
-                    let xs = &mut lane.x[re..re + runs];
-                    let ys = &mut lane.y[re..re + runs];
-                    let ds = &mut lane.du[re..re + runs];
-                    for r in 0..runs {
-                        let x = zi[r] - zj[r];
-                        xs[r] = x;
-                        ys[r] = x + v[r];
-                        ds[r] = dt * (ui[r] - uj[r]);
-                    }
-                }
-            }
-            // 4. Estimation.
-            let step = Step {
-                k,
-                dt,
-                y: &lane.y,
-                u_prev: &lane.u,
-                du: &lane.du,
-                faults: &fstage.out,
-                truth: &lane.x,
-                target: targets.as_ref().map(|t| &t.now),
-            };
-            lane.est.step(&step);
-            if let Some(b) = lane.est.breakdown() {
-                lane.out.stop = Some(Stop {
-                    report: next_report,
-                    step: k,
-                    run: range.start,
-                    cause: format!("{}; likely cause: {hint}", b.what),
-                });
-                continue;
-            }
-            // 6. Metrics (before control, as the papers plot x̂_{k|k} and z_k).
-            if is_report {
-                let meas = Measure {
-                    step: &step,
-                    estimator: lane.est.as_ref(),
-                    z: &lane.z,
-                    framework: fw,
-                    runs,
-                };
-                for (metric, vals) in lane.metrics.iter().zip(lane.out.values.iter_mut()) {
-                    let out = &mut vals[next_report * runs..(next_report + 1) * runs];
-                    metric.measure(&meas, out);
-                    let partial = metric.partial();
-                    if let Some(r) = out
-                        .iter()
-                        .position(|v| !(v.is_finite() || partial && v.is_nan()))
-                    {
-                        if lane.out.stop.is_none() {
-                            lane.out.stop = Some(Stop {
-                                report: next_report,
-                                step: k,
-                                run: range.start + r,
-                                cause: format!(
-                                    "`{}` became non-finite; likely cause: {hint}",
-                                    metric.name()
-                                ),
-                            });
-                        }
-                    }
-                }
-                if lane.out.stop.is_some() {
-                    continue;
-                }
-                if let Some(rr) = record {
-                    lane.out
-                        .paths
-                        .extend((0..nd).map(|a| lane.z[a * runs + rr]));
-                }
-            }
-            // 5. Control and move.
-            let edges_in = match sc.feedback() {
-                Feedback::Estimates => lane.est.estimates(),
-                Feedback::Truth => &lane.x,
-            };
-            lane.ctrl.apply(
-                &ControlInput {
-                    edges: edges_in,
-                    u_prev: &lane.u,
-                    z: &lane.z,
-                    next_target: targets.as_ref().map(|t| t.next.positions.as_slice()),
-                    faults: &fstage.out,
-                },
-                &mut lane.u_next,
-            );
-            std::mem::swap(&mut lane.u, &mut lane.u_next);
-            if is_report {
-                if let Some(rr) = record {
-                    lane.out
-                        .inputs
-                        .extend((0..nd).map(|a| lane.u[a * runs + rr]));
-                }
-            }
-            if lags > 0 {
-                let h = &mut lane.uhist;
-                h.rotate_right(1);
-                h[0].copy_from_slice(&lane.u);
-                // Biased (Yule–Walker) estimator: r(τ) sums u_k u_{k−τ} over k − τ ≥ from and
-                // every r(τ) is divided by the same count, so the Toeplitz matrix stays PSD.
-                if k >= opt.input_from {
-                    for tau in (0..=lags).filter(|&t| k >= opt.input_from + t) {
-                        for a in 0..nd {
-                            let dd = a % d;
-                            let acc = &mut lane.out.acov
-                                [(tau * d + dd) * runs..(tau * d + dd + 1) * runs];
-                            let (now, past) = (
-                                &h[0][a * runs..(a + 1) * runs],
-                                &h[tau][a * runs..(a + 1) * runs],
-                            );
-                            for ((s, x), y) in acc.iter_mut().zip(now).zip(past) {
-                                *s += x * y;
-                            }
-                        }
-                    }
-                }
-            }
-            for (a, ((zv, uv), wv)) in lane.z.iter_mut().zip(&lane.u).zip(&w).enumerate() {
-                if faults_active && !fstage.out.present(a / (d * runs), a % runs) {
-                    continue;
-                }
-                *zv += dt * uv + wv;
-            }
-            if target_leaders {
-                if let Some(tg) = targets.as_ref() {
-                    for &i in &leaders {
-                        for a in 0..d {
-                            lane.z[(i * d + a) * runs..(i * d + a + 1) * runs]
-                                .fill(tg.next.positions[i * d + a]);
-                        }
-                    }
-                }
-            }
-        }
-        if lags > 0 && k >= opt.input_from {
-            acov_count += (n * runs) as f64;
-        }
-        if is_report {
-            next_report += 1;
-        }
-        if k % progress_every == 0 || k == sc.steps() {
-            let done = if k % progress_every == 0 {
-                progress_every
-            } else {
-                k % progress_every
-            };
-            obs.on_progress((done * runs) as u64);
-            if obs.cancelled() {
-                return None;
-            }
+        index += usize::from(at.now);
+        if !progress.after(k) {
+            return None;
         }
     }
     Some(Chunk {
         range,
-        lanes: lanes.into_iter().map(|l| l.out).collect(),
-        acov_count,
+        lanes: lanes.into_iter().map(Lane::finish).collect(),
     })
+}
+
+/// Progress reports and the cancellation check, every few hundred steps.
+struct Progress<'a> {
+    obs: &'a dyn Observer,
+    runs: usize,
+    steps: usize,
+}
+
+impl<'a> Progress<'a> {
+    const EVERY: usize = 500;
+
+    fn new(obs: &'a dyn Observer, runs: usize, steps: usize) -> Self {
+        Self { obs, runs, steps }
+    }
+
+    /// After step k: `false` when the observer asks to stop.
+    fn after(&mut self, k: usize) -> bool {
+        if k % Self::EVERY != 0 && k != self.steps {
+            return true;
+        }
+        let done = if k % Self::EVERY == 0 {
+            Self::EVERY
+        } else {
+            k % Self::EVERY
+        };
+        self.obs.on_progress((done * self.runs) as u64);
+        !self.obs.cancelled()
+    }
 }

@@ -86,3 +86,70 @@ impl Sensing {
         }
     }
 }
+
+/// What agent `i` senses of each directed edge `(i, j)` at step k, from the positions and the
+/// inputs of the previous step: the true edge `x = z_i − z_j` (for the metrics only), the
+/// measurement mean `ȳ = x + v̄`, and the prediction increment `Δt (u^i_{k−1} − u^j_{k−1})`
+/// (thesis 4.29; what the agent can form when the neighbour's input arrives). All arrays have
+/// runs innermost: positions and inputs N·D rows, the edge arrays M·D rows.
+pub(crate) struct EdgeStates<'a> {
+    /// True edges `x_k`.
+    pub(crate) x: &'a mut [f64],
+    /// Measurement means `ȳ_k`.
+    pub(crate) y: &'a mut [f64],
+    /// Prediction increments.
+    pub(crate) du: &'a mut [f64],
+}
+
+impl EdgeStates<'_> {
+    /// Forms the edge arrays of `edges` from positions `z`, inputs `u` and noise `vbar`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn form(
+        &mut self,
+        edges: &[(usize, usize)],
+        z: &[f64],
+        u: &[f64],
+        vbar: &[f64],
+        d: usize,
+        dt: f64,
+        runs: usize,
+    ) {
+        for (e, &(i, j)) in edges.iter().enumerate() {
+            if d == 2 {
+                // Both coordinates of an edge in one pass over the runs.
+                let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
+                let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
+                let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
+                let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
+                let (zi, zj) = (&z[ri..ri + 2 * runs], &z[rj..rj + 2 * runs]);
+                let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
+                let v = &vbar[re..re + 2 * runs];
+                for r in 0..runs {
+                    let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
+                    x0[r] = a;
+                    x1[r] = b;
+                    y0[r] = a + v[r];
+                    y1[r] = b + v[runs + r];
+                    d0[r] = dt * (ui[r] - uj[r]);
+                    d1[r] = dt * (ui[runs + r] - uj[runs + r]);
+                }
+                continue;
+            }
+            for a in 0..d {
+                let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
+                let (zi, zj) = (&z[ri..ri + runs], &z[rj..rj + runs]);
+                let (ui, uj) = (&u[ri..ri + runs], &u[rj..rj + runs]);
+                let v = &vbar[re..re + runs];
+                let xs = &mut self.x[re..re + runs];
+                let ys = &mut self.y[re..re + runs];
+                let ds = &mut self.du[re..re + runs];
+                for r in 0..runs {
+                    let x = zi[r] - zj[r];
+                    xs[r] = x;
+                    ys[r] = x + v[r];
+                    ds[r] = dt * (ui[r] - uj[r]);
+                }
+            }
+        }
+    }
+}

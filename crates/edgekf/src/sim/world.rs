@@ -183,6 +183,11 @@ impl World {
         }
     }
 
+    /// Runs in the chunk.
+    pub(crate) fn runs(&self) -> usize {
+        self.rngs.len()
+    }
+
     /// Initial positions `z_1 = μ + C_P ξ` (N·D rows × runs), drawn first in every stream.
     pub(crate) fn initial_positions(&mut self, mean: &[f64], cov: &DMatrix<f64>, z: &mut [f64]) {
         let d = mean.len();

@@ -1,0 +1,251 @@
+//! One estimator's closed loop over a chunk of runs: the papers' step after the shared stages
+//! ([`super::stages`]) — sensing, estimation, the divergence policy, metrics, control and motion
+//! — reading as thesis Algorithms 5–7.
+
+use std::ops::Range;
+
+use super::divergence::{self, Stop};
+use super::metrics::{metrics_for, Measure, Metric};
+use super::observe::{InputAutocov, LaneObserver, PathRecorder};
+use super::sensing::EdgeStates;
+use super::stages::Shared;
+use super::{motion, LaneOut, Options};
+use crate::control::{pin_leaders, ControlInput, Controller, LeaderMode};
+use crate::estimate::{Estimator, Step};
+use crate::framework::Framework;
+use crate::scenario::{EstimatorDef, Feedback, Scenario};
+
+/// What every loop of a chunk reads and nobody changes.
+pub(crate) struct Context<'a> {
+    pub(crate) fw: &'a Framework,
+    pub(crate) edges: &'a [(usize, usize)],
+    pub(crate) d: usize,
+    pub(crate) dt: f64,
+    pub(crate) runs: usize,
+    /// The chunk's first run (global index).
+    pub(crate) first_run: usize,
+    pub(crate) feedback: Feedback,
+    pub(crate) target_leaders: bool,
+    /// Whether agents can depart (then motion tests presence).
+    pub(crate) faults_active: bool,
+    /// The likely cause of a divergence, from the scenario.
+    pub(crate) hint: String,
+}
+
+impl<'a> Context<'a> {
+    pub(crate) fn new(sc: &'a Scenario, sh: &Shared<'_>, range: &Range<usize>) -> Self {
+        let fw = sc.framework();
+        Self {
+            fw,
+            edges: fw.graph().edges(),
+            d: fw.dim(),
+            dt: sc.dt(),
+            runs: range.len(),
+            first_run: range.start,
+            feedback: sc.feedback(),
+            target_leaders: sh.target_leaders(sc),
+            faults_active: sc.faults().any(),
+            hint: sc.divergence_hint(),
+        }
+    }
+}
+
+/// The report a step belongs to: `index` is the next report's index, `now` whether step k is it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct At {
+    pub(crate) k: usize,
+    pub(crate) index: usize,
+    pub(crate) now: bool,
+}
+
+/// The loop's state, N·D or M·D rows × runs.
+struct State {
+    z: Vec<f64>,
+    u: Vec<f64>,
+    u_next: Vec<f64>,
+    du: Vec<f64>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+}
+
+/// One estimator's closed loop.
+pub(crate) struct Lane {
+    est: Box<dyn Estimator>,
+    ctrl: Controller,
+    /// Index of its T in the sensing stage.
+    noise: usize,
+    metrics: Vec<Box<dyn Metric>>,
+    state: State,
+    /// Per metric, `[report · runs + run]`.
+    values: Vec<Vec<f64>>,
+    stop: Option<Stop>,
+    observers: Vec<Box<dyn LaneObserver>>,
+}
+
+impl Lane {
+    /// The loop of estimator `def`, starting from `z0`; `record` is the chunk index of the run
+    /// whose paths are kept.
+    pub(crate) fn new(
+        sc: &Scenario,
+        def: &EstimatorDef,
+        sh: &Shared<'_>,
+        z0: &[f64],
+        record: Option<usize>,
+        opt: Options,
+    ) -> Self {
+        let fw = sc.framework();
+        let (d, runs) = (fw.dim(), sh.world.runs());
+        let (nd, md) = (fw.agents() * d, fw.graph().num_edges() * d);
+        let nr = sc.report_count();
+        let metrics = metrics_for(sc, def);
+        let mut observers: Vec<Box<dyn LaneObserver>> = Vec::new();
+        if let Some(r) = record {
+            observers.push(Box::new(PathRecorder::new(r, runs, nd, nr)));
+        }
+        if opt.input_lags > 0 {
+            observers.push(Box::new(InputAutocov::new(
+                opt.input_lags,
+                opt.input_from,
+                d,
+                nd,
+                runs,
+            )));
+        }
+        let leaders = sc.leader_mode().unwrap_or(LeaderMode::Target);
+        Lane {
+            est: def.config().build(sc.model(), def.samples(), runs),
+            ctrl: Controller::new(fw, sc.law(), leaders, sc.dt(), runs),
+            noise: sh.sensing.index_of(def.samples()),
+            values: vec![vec![f64::NAN; nr * runs]; metrics.len()],
+            metrics,
+            state: State {
+                z: z0.to_vec(),
+                u: vec![0.0; nd * runs],
+                u_next: vec![0.0; nd * runs],
+                du: vec![0.0; md * runs],
+                x: vec![0.0; md * runs],
+                y: vec![0.0; md * runs],
+            },
+            stop: None,
+            observers,
+        }
+    }
+
+    /// Whether the loop still runs (it has not diverged).
+    pub(crate) fn running(&self) -> bool {
+        self.stop.is_none()
+    }
+
+    /// Step k: sensing → estimation → (metrics at a report) → control → motion.
+    pub(crate) fn step(&mut self, at: At, sh: &Shared<'_>, cx: &Context<'_>) {
+        let Lane {
+            est,
+            state: s,
+            metrics,
+            values,
+            observers,
+            ..
+        } = self;
+        EdgeStates {
+            x: &mut s.x,
+            y: &mut s.y,
+            du: &mut s.du,
+        }
+        .form(cx.edges, &s.z, &s.u, &sh.sensing.vbar[self.noise], cx.d, cx.dt, cx.runs);
+        let targets = sh.targets.as_ref();
+        let step = Step {
+            k: at.k,
+            dt: cx.dt,
+            y: &s.y,
+            u_prev: &s.u,
+            du: &s.du,
+            faults: &sh.faults.out,
+            truth: &s.x,
+            target: targets.map(|t| &t.now),
+        };
+        est.step(&step);
+        if let Some(b) = est.breakdown() {
+            self.stop = Some(divergence::breakdown(b, at.k, at.index, cx.first_run, &cx.hint));
+            return;
+        }
+        if at.now {
+            // Metrics before control, as the papers plot x̂_{k|k} and z_k.
+            let meas = Measure {
+                step: &step,
+                estimator: est.as_ref(),
+                z: &s.z,
+                framework: cx.fw,
+                runs: cx.runs,
+            };
+            self.stop = measure(metrics, values, &meas, at, cx);
+            if self.stop.is_some() {
+                return;
+            }
+            observers.iter_mut().for_each(|o| o.on_report(&s.z));
+        }
+        self.control(at, sh, cx);
+    }
+
+    /// `u_k` from the estimates (or the true edges), then the move to `z_{k+1}` and the leaders
+    /// set on the next target.
+    fn control(&mut self, at: At, sh: &Shared<'_>, cx: &Context<'_>) {
+        let s = &mut self.state;
+        let faults = &sh.faults.out;
+        let next_target = sh.targets.as_ref().map(|t| t.next.positions.as_slice());
+        let edges_in = match cx.feedback {
+            Feedback::Estimates => self.est.estimates(),
+            Feedback::Truth => &s.x,
+        };
+        let input = ControlInput {
+            edges: edges_in,
+            u_prev: &s.u,
+            z: &s.z,
+            next_target,
+            faults,
+        };
+        self.ctrl.apply(&input, &mut s.u_next);
+        std::mem::swap(&mut s.u, &mut s.u_next);
+        for o in &mut self.observers {
+            o.on_input(at.k, &s.u, at.now);
+        }
+        motion::advance(&mut s.z, &s.u, &sh.w, cx.dt, cx.faults_active.then_some(faults));
+        if let (true, Some(t)) = (cx.target_leaders, next_target) {
+            pin_leaders(&mut s.z, cx.fw.leaders(), t, cx.d, cx.runs);
+        }
+    }
+
+    /// The loop's output.
+    pub(crate) fn finish(self) -> LaneOut {
+        let mut out = LaneOut {
+            values: self.values,
+            stop: self.stop,
+            paths: Vec::new(),
+            inputs: Vec::new(),
+            acov: Vec::new(),
+        };
+        for o in self.observers {
+            o.finish(&mut out);
+        }
+        out
+    }
+}
+
+/// Every metric at report `at.index` into `values`; the stop if one is non-finite.
+fn measure(
+    metrics: &[Box<dyn Metric>],
+    values: &mut [Vec<f64>],
+    meas: &Measure<'_>,
+    at: At,
+    cx: &Context<'_>,
+) -> Option<Stop> {
+    let mut stop = None;
+    for (metric, vals) in metrics.iter().zip(values.iter_mut()) {
+        let out = &mut vals[at.index * cx.runs..(at.index + 1) * cx.runs];
+        metric.measure(meas, out);
+        let at3 = (at.k, at.index, cx.first_run);
+        if stop.is_none() {
+            stop = divergence::non_finite(metric.name(), out, metric.partial(), at3, &cx.hint);
+        }
+    }
+    stop
+}
