@@ -400,7 +400,7 @@ fn reproductions() -> Vec<(
     Vec<&'static str>,
     bool,
 )> {
-    edgekf::reproductions::ENTRIES
+    edgekf_io::reproductions::ENTRIES
         .iter()
         .map(|e| {
             (
@@ -428,7 +428,7 @@ fn reproduce(
     threads: Option<usize>,
     progress: bool,
 ) -> PyResult<PyRes> {
-    let e = edgekf::reproductions::find(name).ok_or_else(|| {
+    let e = edgekf_io::reproductions::find(name).ok_or_else(|| {
         PyValueError::new_err(format!(
             "unknown figure `{name}`; edgekf.list_reproductions() gives the names"
         ))

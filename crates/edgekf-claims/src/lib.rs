@@ -368,7 +368,7 @@ pub fn select(names: &[String]) -> Result<Vec<Claim>, ClaimsError> {
         return Ok(all);
     }
     for n in names {
-        if edgekf::reproductions::find(n).is_none() {
+        if edgekf_io::reproductions::find(n).is_none() {
             return Err(ClaimsError::UnknownReproduction(n.clone()));
         }
     }
@@ -381,5 +381,5 @@ pub fn select(names: &[String]) -> Result<Vec<Claim>, ClaimsError> {
 /// The simulation directory a claim's results belong in (`reproduce --out DIR` writes each
 /// simulation to `DIR/<simulation>`).
 pub fn simulation_of(c: &Claim) -> &'static str {
-    edgekf::reproductions::find(c.reproduction).map_or("claims", |e| e.simulation())
+    edgekf_io::reproductions::find(c.reproduction).map_or("claims", |e| e.simulation())
 }

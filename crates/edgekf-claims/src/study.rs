@@ -3,9 +3,9 @@
 //! it.
 
 use edgekf::noise::Kernel;
-use edgekf::reproductions::{self, Entry};
 use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
 use edgekf::sim::{self, Observer, Results};
+use edgekf_io::reproductions::{self, Entry};
 
 use crate::ClaimsError;
 
@@ -176,7 +176,7 @@ impl Study {
         if size == Size::Reduced {
             spec.sim.runs = spec.sim.runs.min(self.small_runs);
         }
-        let fw = reproductions::framework_of(&spec).map_err(bad)?;
+        let fw = reproductions::framework_of(e.file, &spec).map_err(|x| bad(x.to_string()))?;
         let sc = Scenario::from_spec(&spec, fw.as_ref()).map_err(|x| bad(x.to_string()))?;
         match ed.point {
             Some(k) => {

@@ -38,7 +38,7 @@ fn registry_is_well_formed() {
             c.id
         );
         assert!(
-            edgekf::reproductions::find(c.reproduction).is_some(),
+            edgekf_io::reproductions::find(c.reproduction).is_some(),
             "`{}`: unknown reproduction `{}`",
             c.id,
             c.reproduction

@@ -7,7 +7,7 @@ use anyhow::Result;
 use edgekf::scenario::{EstimatorEntry, ScenarioSpec};
 
 use crate::Overrides;
-use edgekf::reproductions as registry;
+use edgekf_io::reproductions as registry;
 
 /// Options of `edgekf bench`.
 #[derive(clap::Args, Debug)]

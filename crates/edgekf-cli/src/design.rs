@@ -13,10 +13,8 @@ use anyhow::{anyhow, bail, Context};
 use edgekf::design::{self, generators, Candidate, CheckReport, LeaderMode, Method};
 use edgekf::framework::Framework;
 use rand::SeedableRng;
-use serde::{Deserialize, Serialize};
 
-/// Schema tag of framework files.
-pub const FRAMEWORK_SCHEMA: &str = "edgekf.framework/1";
+pub use edgekf_io::framework::{FrameworkFile, FRAMEWORK_SCHEMA};
 
 /// Generators of `--generate`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -148,53 +146,6 @@ pub struct DesignArgs {
     pub out: PathBuf,
 }
 
-/// A framework file (`edgekf.framework/1`).
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
-pub struct FrameworkFile {
-    /// Must be [`FRAMEWORK_SCHEMA`].
-    pub schema: String,
-    /// Name.
-    pub name: String,
-    /// D.
-    pub dim: usize,
-    /// Nominal configuration, one point per agent.
-    pub config: Vec<Vec<f64>>,
-    /// Undirected links `[i, j]`, `i < j`, sorted (as input: the candidate links).
-    pub edges: Vec<[usize; 2]>,
-    /// One weight per link (absent in an input: to be designed).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub weights: Option<Vec<f64>>,
-    /// Leaders.
-    #[serde(default)]
-    pub leaders: Vec<usize>,
-}
-
-impl FrameworkFile {
-    /// The file of a designed framework.
-    pub fn from_framework(f: &Framework) -> Self {
-        Self {
-            schema: FRAMEWORK_SCHEMA.into(),
-            name: f.name().into(),
-            dim: f.dim(),
-            config: (0..f.agents()).map(|i| f.point(i).to_vec()).collect(),
-            edges: f.graph().links().iter().map(|&(i, j)| [i, j]).collect(),
-            weights: Some(f.weights().to_vec()),
-            leaders: f.leaders().to_vec(),
-        }
-    }
-
-    /// The design input it describes.
-    pub fn candidate(&self) -> Candidate {
-        Candidate {
-            name: self.name.clone(),
-            dim: self.dim,
-            config: self.config.clone(),
-            links: self.edges.iter().map(|e| (e[0], e[1])).collect(),
-            leaders: self.leaders.clone(),
-        }
-    }
-}
-
 fn generate(args: &DesignArgs, which: Generator) -> anyhow::Result<Candidate> {
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(args.seed);
     let needs = |what: &str| -> anyhow::Result<()> {
@@ -245,15 +196,8 @@ fn generate(args: &DesignArgs, which: Generator) -> anyhow::Result<Candidate> {
 
 fn read_input(path: &Path) -> anyhow::Result<Candidate> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let file: FrameworkFile = serde_json::from_str(&text)
+    let file = FrameworkFile::parse(&text)
         .with_context(|| format!("parsing {} as {FRAMEWORK_SCHEMA}", path.display()))?;
-    if file.schema != FRAMEWORK_SCHEMA {
-        bail!(
-            "{}: schema is {:?}, expected {FRAMEWORK_SCHEMA:?}",
-            path.display(),
-            file.schema
-        );
-    }
     if file.weights.is_some() {
         eprintln!(
             "note: {} carries weights; they are ignored and its edges are taken as candidates",

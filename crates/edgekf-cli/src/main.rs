@@ -31,9 +31,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
-use edgekf::reproductions as registry;
 use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Observer, Outcome, Results};
+use edgekf_io::reproductions as registry;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 #[derive(Parser, Debug)]
@@ -694,8 +694,7 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Resu
         let text = registry::framework_text(rel).with_context(|| {
             format!("framework file `{rel}` is not shipped with the reproductions")
         })?;
-        edgekf::scenario::FrameworkSpec::from_framework_json(text)
-            .map_err(|m| anyhow::anyhow!("{rel}: {m}"))
+        edgekf_io::framework::spec_from_json(text).map_err(|m| anyhow::anyhow!("{rel}: {m}"))
     };
     let mut files: Vec<(&str, Scenario)> = Vec::new();
     for e in &entries {

@@ -23,8 +23,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use edgekf::reproductions as registry;
 use edgekf::sim::Outcome;
+use edgekf_io::reproductions as registry;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 

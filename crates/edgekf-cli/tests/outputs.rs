@@ -57,7 +57,7 @@ fn reproduce_all_writes_each_simulation_once_with_its_figures_and_pages() {
     let all = files(&dir);
     // One data set per scenario file: the registry's simulations, each once.
     // (A companion simulation, like the dense graph of garkf-fig13, has a directory of its own.)
-    let mut sims: Vec<&str> = edgekf::reproductions::ENTRIES
+    let mut sims: Vec<&str> = edgekf_io::reproductions::ENTRIES
         .iter()
         .filter(|e| !e.is_slam())
         .flat_map(|e| {
@@ -85,7 +85,7 @@ fn reproduce_all_writes_each_simulation_once_with_its_figures_and_pages() {
         }
     }
     // Every figure of every reproduction exactly once, beside its simulation's data.
-    for e in edgekf::reproductions::ENTRIES
+    for e in edgekf_io::reproductions::ENTRIES
         .iter()
         .filter(|e| !e.is_slam())
     {

@@ -589,7 +589,7 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use edgekf::reproductions::ENTRIES;
+    use edgekf_io::reproductions::ENTRIES;
     use std::time::{Duration, Instant};
 
     /// A shipped scenario at test size (the transient and the shape of every figure kept).

@@ -509,8 +509,8 @@ mod tests {
 
     use std::time::{Duration, Instant};
 
-    use edgekf::reproductions;
     use edgekf::sim::{self, Quiet};
+    use edgekf_io::reproductions;
 
     use super::*;
 

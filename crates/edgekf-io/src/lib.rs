@@ -8,6 +8,9 @@
 //! saved from Python is byte-identical to the CLI's.
 #![warn(missing_docs)]
 
+pub mod framework;
+pub mod reproductions;
+
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -125,8 +128,7 @@ fn scenario_from_spec_with(
 pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec> {
     let text = fs::read_to_string(path)
         .with_context(|| format!("cannot read framework file {}", path.display()))?;
-    FrameworkSpec::from_framework_json(&text)
-        .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
+    framework::spec_from_json(&text).map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
 }
 
 /// Files staged under temporary names in a directory and moved into place together once every

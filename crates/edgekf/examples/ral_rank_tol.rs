@@ -6,9 +6,9 @@
 //! cargo run --release -p edgekf --example ral_rank_tol
 //! ```
 
-use edgekf::reproductions;
 use edgekf::scenario::{Scenario, ScenarioSpec};
 use edgekf::sim::{self, Quiet, Results};
+use edgekf_io::reproductions;
 
 fn window_mean(res: &Results, label: &str, metric: &str, from: f64, to: f64) -> f64 {
     let v = res.values(label, metric).expect("metric");

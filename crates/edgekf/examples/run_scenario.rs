@@ -6,9 +6,9 @@
 //! cargo run -p edgekf --example run_scenario
 //! ```
 
-use edgekf::reproductions;
 use edgekf::scenario::{Scenario, ScenarioSpec};
 use edgekf::sim::{self, Observer};
+use edgekf_io::reproductions;
 
 /// Progress on stderr, every tenth of the run-steps.
 struct Dots(std::sync::atomic::AtomicU64, u64);

@@ -22,7 +22,10 @@
 //!   [`scenario::Scenario`] ⇄ its resolved form [`scenario::Resolved`] (`scenario.json`);
 //! - [`sim`]: the closed-loop Monte Carlo engine ([`sim::run`]) and its [`sim::Results`];
 //! - [`design`]: rigidity checks and stress design (SDP, Yang 2019, sparse ℓ1), generators;
-//! - [`reproductions`]: the shipped scenarios behind `edgekf reproduce`.
+//! - [`step`]: what one step's stages hand to the estimators and controllers.
+//!
+//! The shipped scenarios behind `edgekf reproduce`, and every file format, live in the
+//! `edgekf-io` crate.
 //!
 //! # Embed one edge filter on an agent
 //! Agent i tracks its edge to neighbour j, `z_ij = z_i − z_j`: one [`estimate::batch::EdgeCov`]
@@ -97,6 +100,6 @@ pub mod graph;
 pub mod linalg;
 pub mod metrics;
 pub mod noise;
-pub mod reproductions;
 pub mod scenario;
 pub mod sim;
+pub mod step;

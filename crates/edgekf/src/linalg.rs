@@ -220,6 +220,24 @@ pub fn to_row_major(m: &DMatrix<f64>, out: &mut [f64]) {
     }
 }
 
+/// Eigenvalues `(re, im)` of a general real square matrix from its real Schur form, with the
+/// iterations capped (nalgebra's `complex_eigenvalues` iterates without bound and can stall on
+/// clustered, nearly defective spectra such as the slow modes of a closed loop at small Δt);
+/// a second attempt uses a looser deflation threshold (1e-10 instead of ε). `None` when
+/// neither converges.
+pub fn eigenvalues_general(m: &DMatrix<f64>) -> Option<Vec<(f64, f64)>> {
+    let cap = 2_000 * m.nrows().max(1);
+    let schur = nalgebra::linalg::Schur::try_new(m.clone(), f64::EPSILON, cap)
+        .or_else(|| nalgebra::linalg::Schur::try_new(m.clone(), 1e-10, cap))?;
+    Some(
+        schur
+            .complex_eigenvalues()
+            .iter()
+            .map(|c| (c.re, c.im))
+            .collect(),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

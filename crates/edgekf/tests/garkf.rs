@@ -320,7 +320,7 @@ fn consensus_step_is_checked_against_its_stability_bound() {
         );
         let spec: ScenarioSpec = toml::from_str(&text).map_err(|e| e.to_string())?;
         let file = spec.framework.file.as_ref().map(|_| {
-            edgekf::scenario::FrameworkSpec::from_framework_json(include_str!(
+            edgekf_io::framework::spec_from_json(include_str!(
                 "../../../scenarios/frameworks/random50-dense.json"
             ))
             .unwrap()

@@ -35,7 +35,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use edgekf::scenario::{FrameworkSpec, Scenario, ScenarioSpec};
+use edgekf::scenario::{Scenario, ScenarioSpec};
 use mutate::{Format, Mutator, Seed};
 
 /// The binary under test.
@@ -98,7 +98,7 @@ pub fn corpus(base: u64, work: &Path) -> (Mutator, Vec<Role>) {
                 // resolved form only: a mutated copy elsewhere would not find the file.
                 let file = spec.framework.file.as_ref().map(|f| {
                     let text = fs::read_to_string(scenarios_dir().join(f)).expect("framework file");
-                    FrameworkSpec::from_framework_json(&text).expect("framework file")
+                    edgekf_io::framework::spec_from_json(&text).expect("framework file")
                 });
                 let sc = Scenario::from_spec(&spec, file.as_ref()).expect("valid shipped scenario");
                 if file.is_none() {

@@ -314,26 +314,8 @@ pub fn varying_velocity_closed_loop(part: &Partition, dt: f64) -> Result<DMatrix
     Ok(a)
 }
 
-/// Eigenvalues `(re, im)` of a general real square matrix from its real Schur form, with the
-/// iterations capped (nalgebra's `complex_eigenvalues` iterates without bound and can stall on
-/// clustered, nearly defective spectra such as the slow modes of a closed loop at small Δt);
-/// a second attempt uses a looser deflation threshold (1e-10 instead of ε). `None` when
-/// neither converges.
-pub fn eigenvalues_general(m: &DMatrix<f64>) -> Option<Vec<(f64, f64)>> {
-    let cap = 2_000 * m.nrows().max(1);
-    let schur = nalgebra::linalg::Schur::try_new(m.clone(), f64::EPSILON, cap)
-        .or_else(|| nalgebra::linalg::Schur::try_new(m.clone(), 1e-10, cap))?;
-    Some(
-        schur
-            .complex_eigenvalues()
-            .iter()
-            .map(|c| (c.re, c.im))
-            .collect(),
-    )
-}
-
 fn spectral_radius(a: &DMatrix<f64>, what: &'static str) -> Result<f64, LawError> {
-    let ev = eigenvalues_general(a).ok_or(LawError::Eigen { what })?;
+    let ev = crate::linalg::eigenvalues_general(a).ok_or(LawError::Eigen { what })?;
     Ok(ev.iter().map(|&(re, im)| re.hypot(im)).fold(0.0, f64::max))
 }
 
@@ -411,7 +393,7 @@ mod tests {
             let dt = [0.001, 0.01, 0.05][g.random_range(0..3)];
             let fast = pi_spectral_radius(&part.l_ff, alpha, eta, dt).unwrap();
             let a = pi_closed_loop(&part.l_ff, alpha, eta, dt);
-            let dense = eigenvalues_general(&a)
+            let dense = crate::linalg::eigenvalues_general(&a)
                 .unwrap()
                 .iter()
                 .map(|&(re, im)| re.hypot(im))

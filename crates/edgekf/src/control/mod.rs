@@ -25,8 +25,8 @@
 pub mod laws;
 pub mod maneuver;
 
-use crate::estimate::Faults;
 use crate::framework::Framework;
+use crate::step::Faults;
 
 /// The followers' control law (Li & Rajan Table 1).
 #[derive(Debug, Clone, Copy, PartialEq)]

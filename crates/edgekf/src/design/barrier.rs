@@ -23,13 +23,11 @@
 
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
-use super::ipm::Mode;
-
 /// Newton steps the barrier method may take when the primal–dual method found no usable point.
 pub(crate) const RESCUE_STEPS: usize = 600;
 /// Newton steps it may take to tighten the gap of a usable primal–dual point.
 pub(crate) const POLISH_STEPS: usize = 100;
-use super::{SolverStatus, StressSpace};
+use super::{Mode, SolverStatus, StressSpace};
 
 /// A barrier problem on a stress space.
 pub(crate) struct Problem<'a> {

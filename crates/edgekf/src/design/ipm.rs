@@ -52,18 +52,7 @@
 
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
-use super::{dense, StressSpace};
-
-/// Which problem to solve.
-#[derive(Debug, Clone)]
-pub(crate) enum Mode {
-    /// `max s` s.t. `s Π ⪯ L(w) ⪯ Π`.
-    Condition,
-    /// `max s` s.t. `s Π ⪯ L(w)`, `s ≤ lambda_bar`, `|w_l| ≤ wmax`.
-    Gap { lambda_bar: f64, wmax: f64 },
-    /// `min Σ p` s.t. `Π ⪯ L(w) ⪯ kappa Π`, `|w_l| ≤ p_l` where `penalised[l]`.
-    L1 { kappa: f64, penalised: Vec<bool> },
-}
+use super::{dense, Mode, StressSpace};
 
 /// A PSD block `S = σ L(w) + (γ − η e₀) Π`.
 #[derive(Debug, Clone, Copy)]

@@ -48,6 +48,18 @@ use nalgebra::{DMatrix, DVector};
 use crate::framework::{Framework, FrameworkError};
 use crate::graph::GraphError;
 
+/// Which stress SDP to solve (shared by the interior-point method [`ipm`] and the barrier
+/// method [`barrier`]).
+#[derive(Debug, Clone)]
+pub(crate) enum Mode {
+    /// `max s` s.t. `s Π ⪯ L(w) ⪯ Π`.
+    Condition,
+    /// `max s` s.t. `s Π ⪯ L(w)`, `s ≤ lambda_bar`, `|w_l| ≤ wmax`.
+    Gap { lambda_bar: f64, wmax: f64 },
+    /// `min Σ p` s.t. `Π ⪯ L(w) ⪯ kappa Π`, `|w_l| ≤ p_l` where `penalised[l]`.
+    L1 { kappa: f64, penalised: Vec<bool> },
+}
+
 pub use checks::{check, CheckReport};
 pub use generators::Candidate;
 pub use leaders::{choose_leaders, LeaderChoice, LeaderMode};

@@ -29,7 +29,8 @@ use nalgebra::DVector;
 use super::barrier;
 #[cfg(feature = "clarabel")]
 use super::conic;
-use super::ipm::{self, Mode};
+use super::ipm;
+use super::Mode;
 use super::{finish, validate, Candidate, Design, DesignError, Finish, SolverStatus, StressSpace};
 
 /// Which bounded form of thesis (3.5) to solve.

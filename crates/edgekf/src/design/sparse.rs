@@ -25,8 +25,9 @@ use nalgebra::DVector;
 
 #[cfg(feature = "clarabel")]
 use super::conic;
-use super::ipm::{self, Mode};
+use super::ipm;
 use super::sdp::{best_conditioned, conditioned, SdpSolver};
+use super::Mode;
 use super::{finish, validate, Candidate, Design, DesignError, Finish, StressSpace};
 use crate::graph::Graph;
 

@@ -793,7 +793,7 @@ pub fn consensus_stability(
             .map(|&v| (v, 0.0))
             .collect()
     } else {
-        crate::control::laws::eigenvalues_general(&m).ok_or(RalError::Eigen)?
+        crate::linalg::eigenvalues_general(&m).ok_or(RalError::Eigen)?
     };
     let scale = eig.iter().map(|&(re, im)| re.hypot(im)).fold(0.0, f64::max);
     let tol = 1e-12 * scale.max(1.0);

@@ -7,7 +7,6 @@
 //! engine relies on its invariants without re-validating.
 
 mod check;
-mod framework_file;
 mod resolved;
 mod spec;
 mod sweep;
@@ -17,7 +16,6 @@ use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
-pub use framework_file::FRAMEWORK_SCHEMA;
 pub use resolved::{Resolved, SCHEMA};
 pub use spec::{
     CommSpec, ControlSpec, DepartureSpec, EstimatorEntry, FaultSpec, FeedbackSpec, FrameworkSpec,

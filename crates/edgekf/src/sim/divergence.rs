@@ -28,7 +28,13 @@ impl Stop {
 
 /// The stop after an estimator's breakdown at step `k`, seen first in run `first_run` of the
 /// chunk (a breakdown is of the batch, not of one run), `report` the next report index.
-pub(crate) fn breakdown(b: &Breakdown, k: usize, report: usize, first_run: usize, hint: &str) -> Stop {
+pub(crate) fn breakdown(
+    b: &Breakdown,
+    k: usize,
+    report: usize,
+    first_run: usize,
+    hint: &str,
+) -> Stop {
     Stop {
         report,
         step: k,

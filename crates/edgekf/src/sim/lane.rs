@@ -151,7 +151,15 @@ impl Lane {
             y: &mut s.y,
             du: &mut s.du,
         }
-        .form(cx.edges, &s.z, &s.u, &sh.sensing.vbar[self.noise], cx.d, cx.dt, cx.runs);
+        .form(
+            cx.edges,
+            &s.z,
+            &s.u,
+            &sh.sensing.vbar[self.noise],
+            cx.d,
+            cx.dt,
+            cx.runs,
+        );
         let targets = sh.targets.as_ref();
         let step = Step {
             k: at.k,
@@ -165,7 +173,13 @@ impl Lane {
         };
         est.step(&step);
         if let Some(b) = est.breakdown() {
-            self.stop = Some(divergence::breakdown(b, at.k, at.index, cx.first_run, &cx.hint));
+            self.stop = Some(divergence::breakdown(
+                b,
+                at.k,
+                at.index,
+                cx.first_run,
+                &cx.hint,
+            ));
             return;
         }
         if at.now {
@@ -208,7 +222,13 @@ impl Lane {
         for o in &mut self.observers {
             o.on_input(at.k, &s.u, at.now);
         }
-        motion::advance(&mut s.z, &s.u, &sh.w, cx.dt, cx.faults_active.then_some(faults));
+        motion::advance(
+            &mut s.z,
+            &s.u,
+            &sh.w,
+            cx.dt,
+            cx.faults_active.then_some(faults),
+        );
         if let (true, Some(t)) = (cx.target_leaders, next_target) {
             pin_leaders(&mut s.z, cx.fw.leaders(), t, cx.d, cx.runs);
         }

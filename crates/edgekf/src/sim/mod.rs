@@ -334,7 +334,13 @@ fn check_parts(parts: &[Results], first: &Results) -> Result<(), MergeError> {
 
 /// Copies a part's per-metric values `[report · len + run]` into the whole's
 /// `[report · total + run]`, at the whole's runs `at`.
-fn place(whole: &mut [Vec<f64>], part: &[Vec<f64>], reports: usize, total: usize, at: Range<usize>) {
+fn place(
+    whole: &mut [Vec<f64>],
+    part: &[Vec<f64>],
+    reports: usize,
+    total: usize,
+    at: Range<usize>,
+) {
     let len = at.len();
     for (w, v) in whole.iter_mut().zip(part) {
         for k in 0..reports {
@@ -399,7 +405,13 @@ fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options)
         for part in &parts {
             let lane = &part.lanes[e];
             let off = part.range.start - range.start;
-            place(&mut values, &lane.values, nr, runs, off..off + part.range.len());
+            place(
+                &mut values,
+                &lane.values,
+                nr,
+                runs,
+                off..off + part.range.len(),
+            );
             if let Some(s) = &lane.stop {
                 if stop.is_none_or(|b| s.before(b)) {
                     stop = Some(s);

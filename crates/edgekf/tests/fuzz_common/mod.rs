@@ -32,9 +32,9 @@ use std::time::{Duration, Instant};
 
 use edgekf::design::{self, generators, Method};
 use edgekf::framework::Framework;
-use edgekf::scenario::{FrameworkSpec, Resolved, Scenario, ScenarioError, ScenarioSpec};
+use edgekf::scenario::{Resolved, Scenario, ScenarioError, ScenarioSpec};
+use edgekf_io::framework::FrameworkFile;
 use mutate::{Format, Mutator, Seed};
-use serde::{Deserialize, Serialize};
 
 /// A case slower than this plus [`SLOW_PER_BYTE`] per byte of input is a defect: parsing and
 /// checking must stay cheap and about linear in the input (a mutation can grow an input to
@@ -65,44 +65,6 @@ steps = 30
 runs = 2
 "#;
 
-/// A framework file (`edgekf.framework/1`), read as the CLI reads it (`io::FrameworkFile`).
-#[derive(Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FrameworkFile {
-    /// Schema tag.
-    pub schema: String,
-    /// Name.
-    #[serde(default)]
-    pub name: Option<String>,
-    /// D.
-    pub dim: usize,
-    /// Configuration.
-    pub config: Vec<Vec<f64>>,
-    /// Undirected links.
-    pub edges: Vec<[usize; 2]>,
-    /// Weights per link.
-    #[serde(default)]
-    pub weights: Option<Vec<f64>>,
-    /// Leaders.
-    #[serde(default)]
-    pub leaders: Option<Vec<usize>>,
-}
-
-impl FrameworkFile {
-    /// The file `edgekf design` writes for `f`.
-    pub fn of(f: &Framework) -> Self {
-        Self {
-            schema: "edgekf.framework/1".into(),
-            name: Some(f.name().into()),
-            dim: f.dim(),
-            config: (0..f.agents()).map(|i| f.point(i).to_vec()).collect(),
-            edges: f.graph().links().iter().map(|&(i, j)| [i, j]).collect(),
-            weights: Some(f.weights().to_vec()),
-            leaders: Some(f.leaders().to_vec()),
-        }
-    }
-}
-
 /// The repository's `scenarios/` directory.
 pub fn scenarios_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenarios")
@@ -132,7 +94,7 @@ pub fn corpus(base: u64) -> (Mutator, Vec<Role>) {
         // file; the resolved form carries the framework inline).
         let file = spec.framework.file.as_ref().map(|f| {
             let text = std::fs::read_to_string(scenarios_dir().join(f)).expect("framework file");
-            FrameworkSpec::from_framework_json(&text).expect("framework file")
+            edgekf_io::framework::spec_from_json(&text).expect("framework file")
         });
         let sc = Scenario::from_spec(&spec, file.as_ref()).expect("shipped scenarios are valid");
         if file.is_none() {
@@ -146,7 +108,8 @@ pub fn corpus(base: u64) -> (Mutator, Vec<Role>) {
         roles.push(Role::Resolved);
     }
     for (name, fw) in frameworks() {
-        let json = serde_json::to_string_pretty(&FrameworkFile::of(&fw)).expect("serialisable");
+        let json = serde_json::to_string_pretty(&FrameworkFile::from_framework(&fw))
+            .expect("serialisable");
         seeds.push(Seed::new(&name, Format::Json, &json).expect("framework seed"));
         roles.push(Role::Framework);
     }
@@ -372,28 +335,10 @@ fn check_input(role: Role, text: &str) -> Verdict {
             }
         }
         Role::Framework => {
-            let f = match serde_json::from_str::<FrameworkFile>(text) {
-                Ok(f) => f,
+            // Read as the CLI and the scenarios read it.
+            let fs = match FrameworkFile::parse(text) {
+                Ok(f) => f.to_spec(),
                 Err(e) => return parse_refusal(&e.to_string(), text),
-            };
-            if f.schema != "edgekf.framework/1" {
-                return Verdict::Refused {
-                    stage: "parse",
-                    message: format!(
-                        "key `schema`: expected `edgekf.framework/1`, got `{}`",
-                        f.schema
-                    ),
-                };
-            }
-            let fs = FrameworkSpec {
-                preset: None,
-                file: None,
-                dim: Some(f.dim),
-                config: Some(f.config),
-                edges: Some(f.edges),
-                weights: f.weights,
-                leaders: f.leaders,
-                name: f.name,
             };
             let spec: ScenarioSpec =
                 toml::from_str(FRAMEWORK_SCENARIO).expect("valid framework scenario");

@@ -2,7 +2,53 @@
 //!
 //! Several figures come from one simulation (e.g. thesis Figs 4.9–4.11); `reproduce` runs each
 //! scenario file once and draws every requested figure from it. The scenario texts are embedded
-//! at build time, so the reproductions work from any directory.
+//! at build time, so the reproductions work from any directory. The files live in this crate's
+//! `scenarios/` directory (the repository's top-level `scenarios` links to it).
+
+use edgekf::scenario::{FrameworkSpec, Scenario, ScenarioError, ScenarioSpec};
+
+use crate::framework::{spec_from_json, FrameworkFileError};
+
+/// Why a shipped scenario cannot be had (a bug of the shipped files: tests check every entry),
+/// or why a reproduction is not a filter study.
+#[derive(Debug, thiserror::Error)]
+pub enum ShippedError {
+    /// The TOML does not parse into a scenario spec.
+    #[error("{file}: {source}")]
+    Toml {
+        /// The scenario file.
+        file: String,
+        /// The parser's error.
+        source: toml::de::Error,
+    },
+    /// `framework.file` names a file that is not embedded.
+    #[error("{file}: framework file `{path}` is not embedded")]
+    NotEmbedded {
+        /// The scenario file.
+        file: String,
+        /// The framework file it names.
+        path: String,
+    },
+    /// The framework file does not parse.
+    #[error("{file}: {source}")]
+    Framework {
+        /// The scenario file.
+        file: String,
+        /// Why.
+        source: FrameworkFileError,
+    },
+    /// The scenario fails its checks.
+    #[error("{file}: {source}")]
+    Scenario {
+        /// The scenario file.
+        file: String,
+        /// Which key, and why.
+        source: ScenarioError,
+    },
+    /// A SLAM study has no filter scenario.
+    #[error("{0} is a SLAM study")]
+    Slam(&'static str),
+}
 
 /// One reproducible figure.
 pub struct Entry {
@@ -24,7 +70,7 @@ pub struct Entry {
 
 macro_rules! scenario {
     ($f:literal) => {
-        ($f, include_str!(concat!("../../../scenarios/", $f)))
+        ($f, include_str!(concat!("../scenarios/", $f)))
     };
 }
 
@@ -65,7 +111,7 @@ macro_rules! entry {
 
 macro_rules! framework {
     ($f:literal) => {
-        ($f, include_str!(concat!("../../../scenarios/", $f)))
+        ($f, include_str!(concat!("../scenarios/", $f)))
     };
 }
 
@@ -238,28 +284,40 @@ pub const ENTRIES: &[Entry] = &[
 ];
 
 /// A shipped scenario text, checked, its `framework.file` taken from [`FRAMEWORKS`].
-fn scenario_of(file: &str, text: &str) -> Result<crate::scenario::Scenario, String> {
-    let spec: crate::scenario::ScenarioSpec =
-        toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
-    let fw = framework_of(&spec).map_err(|e| format!("{file}: {e}"))?;
-    crate::scenario::Scenario::from_spec(&spec, fw.as_ref()).map_err(|e| format!("{file}: {e}"))
+fn scenario_of(file: &str, text: &str) -> Result<Scenario, ShippedError> {
+    let spec: ScenarioSpec = toml::from_str(text).map_err(|source| ShippedError::Toml {
+        file: file.into(),
+        source,
+    })?;
+    let fw = framework_of(file, &spec)?;
+    Scenario::from_spec(&spec, fw.as_ref()).map_err(|source| ShippedError::Scenario {
+        file: file.into(),
+        source,
+    })
 }
 
-/// The embedded framework file a shipped scenario names (`framework.file`), parsed; `None`
-/// when it names none.
+/// The embedded framework file that shipped scenario `file` names (`framework.file`), parsed;
+/// `None` when it names none.
 ///
 /// # Errors
-/// A message when the file is not embedded or does not parse.
+/// [`ShippedError`] when the file is not embedded or does not parse.
 pub fn framework_of(
-    spec: &crate::scenario::ScenarioSpec,
-) -> Result<Option<crate::scenario::FrameworkSpec>, String> {
-    match &spec.framework.file {
-        Some(p) => framework_text(p)
-            .ok_or_else(|| format!("framework file `{p}` is not embedded"))
-            .and_then(crate::scenario::FrameworkSpec::from_framework_json)
-            .map(Some),
-        None => Ok(None),
-    }
+    file: &str,
+    spec: &ScenarioSpec,
+) -> Result<Option<FrameworkSpec>, ShippedError> {
+    let Some(p) = &spec.framework.file else {
+        return Ok(None);
+    };
+    let text = framework_text(p).ok_or_else(|| ShippedError::NotEmbedded {
+        file: file.into(),
+        path: p.clone(),
+    })?;
+    spec_from_json(text)
+        .map(Some)
+        .map_err(|source| ShippedError::Framework {
+            file: file.into(),
+            source,
+        })
 }
 
 /// Looks a name up.
@@ -282,11 +340,11 @@ impl Entry {
     /// The checked scenario of a filter study.
     ///
     /// # Errors
-    /// A message if the shipped text does not parse or check (a bug: tests check every entry),
-    /// or for a SLAM study.
-    pub fn scenario(&self) -> Result<crate::scenario::Scenario, String> {
+    /// [`ShippedError`] if the shipped text does not parse or check (a bug: tests check every
+    /// entry), or for a SLAM study.
+    pub fn scenario(&self) -> Result<Scenario, ShippedError> {
         if self.is_slam() {
-            return Err(format!("{} is a SLAM study", self.name));
+            return Err(ShippedError::Slam(self.name));
         }
         scenario_of(self.file, self.text)
     }
@@ -295,7 +353,7 @@ impl Entry {
     ///
     /// # Errors
     /// As [`Entry::scenario`].
-    pub fn companion_scenarios(&self) -> Result<Vec<crate::scenario::Scenario>, String> {
+    pub fn companion_scenarios(&self) -> Result<Vec<Scenario>, ShippedError> {
         self.companions
             .iter()
             .map(|(f, t)| scenario_of(f, t))

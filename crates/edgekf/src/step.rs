@@ -1,0 +1,168 @@
+//! What one step's stages hand to the estimators and the controllers: the faults of the step
+//! ([`Faults`]), the target formation ([`Target`]) and everything an estimator may read
+//! ([`Step`]). These types sit below both [`crate::estimate`] and [`crate::control`], so that
+//! neither imports the other.
+
+/// Which measurements and messages reached whom at this step: the faults stage's output, shared
+/// by every estimator of a run (so different estimators see the same faults: paired
+/// comparisons). All arrays have runs innermost.
+#[derive(Debug, Clone)]
+pub struct Faults {
+    runs: usize,
+    agents: usize,
+    edges: Vec<(usize, usize)>,
+    measurement_faults: bool,
+    observed: Vec<bool>,
+    comm: Vec<f64>,
+    present: Vec<bool>,
+}
+
+impl Faults {
+    /// No faults: every measurement and message arrives, every agent is present.
+    pub fn none(agents: usize, edges: &[(usize, usize)], runs: usize) -> Self {
+        Self {
+            runs,
+            agents,
+            edges: edges.to_vec(),
+            measurement_faults: false,
+            observed: vec![true; edges.len() * runs],
+            comm: Vec::new(),
+            present: vec![true; agents * runs],
+        }
+    }
+
+    /// Runs in the batch.
+    pub fn runs(&self) -> usize {
+        self.runs
+    }
+
+    /// Whether any measurement can be missing in this scenario (lost or unavailable edges,
+    /// departed agents). When `false`, [`Faults::observed`] is always `true`, and filters may
+    /// share one gain across runs.
+    pub fn measurement_faults(&self) -> bool {
+        self.measurement_faults
+    }
+
+    /// Whether agent `i` received its measurement of edge `e = (i, j)` in run `r` this step
+    /// (Li & Rajan's `β_ij,k`: the edge is available, not permanently lost, and both agents are
+    /// present).
+    #[inline]
+    pub fn observed(&self, e: usize, r: usize) -> bool {
+        self.observed[e * self.runs + r]
+    }
+
+    /// [`Faults::observed`] for every run of edge `e`.
+    #[inline]
+    pub fn observed_row(&self, e: usize) -> &[bool] {
+        &self.observed[e * self.runs..(e + 1) * self.runs]
+    }
+
+    /// Whether neighbour `j`'s input `u^j_{k−1}` reached agent `i` over edge `e = (i, j)` in run
+    /// `r`, for an estimator whose links lose the message with probability `p_fail` per step
+    /// (thesis §6.1). One availability draw removes the measurement and the message together
+    /// (Li & Rajan have no separate communication model); the chapter 6 failures come from one
+    /// uniform per directed edge, step and run shared by all estimators, so different
+    /// `p_fail` are paired.
+    #[inline]
+    pub fn input_arrives(&self, e: usize, r: usize, p_fail: f64) -> bool {
+        if !self.observed(e, r) || p_fail >= 1.0 {
+            return false;
+        }
+        p_fail <= 0.0 || self.comm[e * self.runs + r] >= p_fail
+    }
+
+    /// `!`[`Faults::input_arrives`] for every run of edge `e`, written to `lost`: the runs in
+    /// which agent i must predict neighbour j's input this step. Branch-free over the runs.
+    ///
+    /// # Panics
+    /// When `lost` is not one entry per run.
+    #[inline(always)]
+    pub fn inputs_lost(&self, e: usize, p_fail: f64, lost: &mut [bool]) {
+        let observed = self.observed_row(e);
+        assert_eq!(lost.len(), observed.len(), "one entry per run");
+        if p_fail >= 1.0 {
+            lost.fill(true);
+        } else if p_fail <= 0.0 {
+            for (l, &o) in lost.iter_mut().zip(observed) {
+                *l = !o;
+            }
+        } else {
+            let comm = &self.comm[e * self.runs..(e + 1) * self.runs];
+            for ((l, &o), &c) in lost.iter_mut().zip(observed).zip(comm) {
+                *l = !(o & (c >= p_fail));
+            }
+        }
+    }
+
+    /// Whether agent `i` is present (has not departed) in run `r`.
+    #[inline]
+    pub fn present(&self, i: usize, r: usize) -> bool {
+        self.present[i * self.runs + r]
+    }
+
+    /// Whether edge `e` is tracked in run `r`: its measuring agent is present.
+    #[inline]
+    pub fn tracked(&self, e: usize, r: usize) -> bool {
+        self.present(self.edges[e].0, r)
+    }
+
+    /// Number of agents.
+    pub fn agents(&self) -> usize {
+        self.agents
+    }
+
+    /// Mutable access for the faults stage (crate-internal).
+    pub(crate) fn parts_mut(&mut self) -> FaultsMut<'_> {
+        FaultsMut {
+            measurement_faults: &mut self.measurement_faults,
+            observed: &mut self.observed,
+            comm: &mut self.comm,
+            present: &mut self.present,
+        }
+    }
+}
+
+/// The faults stage's write access to [`Faults`].
+pub(crate) struct FaultsMut<'a> {
+    pub(crate) measurement_faults: &'a mut bool,
+    pub(crate) observed: &'a mut Vec<bool>,
+    pub(crate) comm: &'a mut Vec<f64>,
+    pub(crate) present: &'a mut Vec<bool>,
+}
+
+/// The target formation at this step (Li & Rajan eq. 2: `Z* = Θ* P + t* 1ᵀ`), when the scenario
+/// has a maneuver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    /// `Θ*`, D × D row-major.
+    pub theta: Vec<f64>,
+    /// `t*` (D).
+    pub shift: Vec<f64>,
+    /// `Z*`, agent-major (`i * D + d`).
+    pub positions: Vec<f64>,
+    /// `Ż*`, agent-major.
+    pub velocities: Vec<f64>,
+}
+
+/// Everything an estimator may read at step `k`: the outputs of the stages that run before
+/// estimation (world → faults → sensing). Batches have runs innermost.
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'a> {
+    /// Step index k (1-based).
+    pub k: usize,
+    /// Δt.
+    pub dt: f64,
+    /// Measurement means `ȳ_k` for this estimator's T (MD rows); meaningful where observed.
+    pub y: &'a [f64],
+    /// Node inputs of the previous step `u_{k−1}` (ND rows).
+    pub u_prev: &'a [f64],
+    /// Prediction increments `Δt (u^i_{k−1} − u^j_{k−1})` per directed edge (MD rows): what the
+    /// agent knows when the neighbour's input arrives.
+    pub du: &'a [f64],
+    /// Measurement and message availability, agents present.
+    pub faults: &'a Faults,
+    /// The true edge states `x_k` (MD rows). Only the `oracle` reads them.
+    pub truth: &'a [f64],
+    /// The target formation at step k, if the scenario has one.
+    pub target: Option<&'a Target>,
+}
