@@ -438,7 +438,9 @@ fn reproduce(
             "`{name}` is a study of the distributed SLAM observer; run it with the CLI (`edgekf reproduce {name}`)"
         )));
     }
-    let sc = e.scenario().map_err(PyValueError::new_err)?;
+    let sc = e
+        .scenario()
+        .map_err(|x| PyValueError::new_err(x.to_string()))?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;

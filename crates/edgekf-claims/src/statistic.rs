@@ -1016,7 +1016,7 @@ fn model(m: ModelStat, sc: &Scenario) -> Measured {
         }
         ModelStat::StepBound => Ok((Estimate::exact(sc.step_bound()), None)),
         ModelStat::QaMinEigenvalue => {
-            let q = &sc.model().q;
+            let q = sc.model().q();
             let ev = q.clone().symmetric_eigenvalues();
             Ok((Estimate::exact(ev.min() / q[(0, 0)]), None))
         }
@@ -1028,7 +1028,7 @@ fn model(m: ModelStat, sc: &Scenario) -> Measured {
             ))
         }
         ModelStat::QOffDiagonalMax => {
-            let q = &sc.model().q;
+            let q = sc.model().q();
             let d = fw.dim();
             let n = fw.agents();
             let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);

@@ -50,15 +50,15 @@ fn minimal(sc: &Scenario) -> f64 {
     const D: usize = 2;
     let m = sc.model();
     let fw = sc.framework();
-    let (n, me, runs) = (m.agents, m.num_edges(), sc.runs());
+    let (n, me, runs) = (m.agents(), m.num_edges(), sc.runs());
     let (nd, md) = (n * D, me * D);
     let dt = sc.dt();
     let t = sc.samples() as f64;
     // Q = Q_A ⊗ I: chol(Q_A), row-major lower.
-    let qa = DMatrix::from_fn(n, n, |i, j| m.q[(i * D, j * D)]);
+    let qa = DMatrix::from_fn(n, n, |i, j| m.q()[(i * D, j * D)]);
     let ca = lower_rm(&qa);
-    let cr: Vec<f64> = m.r.iter().flat_map(|r| lower_rm(&(r / t))).collect();
-    let edges = &m.edges;
+    let cr: Vec<f64> = m.r().iter().flat_map(|r| lower_rm(&(r / t))).collect();
+    let edges = &m.edges();
     let weights = fw.edge_weights();
     let leader = |i: usize| fw.leaders().contains(&i);
     let d2: Vec<f64> = edges
@@ -82,7 +82,7 @@ fn minimal(sc: &Scenario) -> f64 {
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_q(e, e)[(a, b)]))
         .collect();
     let w: Vec<Mat<D>> =
-        m.r.iter()
+        m.r().iter()
             .map(|r| Mat::<D>::from_fn(|a, b| r[(a, b)] / t))
             .collect();
     let mut sig: Vec<Mat<D>> = (0..me)
@@ -187,7 +187,7 @@ fn minimal(sc: &Scenario) -> f64 {
 fn draws_only(sc: &Scenario) -> f64 {
     const D: usize = 2;
     let m = sc.model();
-    let (n, runs) = (m.agents, sc.runs());
+    let (n, runs) = (m.agents(), sc.runs());
     let per_run = (m.num_edges() + n) * D;
     let mut rngs: Vec<Xoshiro256PlusPlus> = (0..runs)
         .map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64))
@@ -242,7 +242,7 @@ fn main() {
     let m = sc.model();
     println!(
         "draws alone ({} normals)      {draws:7.1}   (checksum {c:.3e}; the floor of any loop drawing them)",
-        (m.num_edges() + m.agents) * 2 / m.agents
+        (m.num_edges() + m.agents()) * 2 / m.agents()
     );
     let mut rkf = f64::NAN;
     for set in [

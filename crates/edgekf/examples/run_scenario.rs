@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         sc.name(),
         sc.runs(),
         sc.steps(),
-        sc.model().dt
+        sc.model().dt()
     );
     println!("estimator   ε, last second [m]   tr Σ, last [m²]   mean ε² / tr Σ");
     let from = res.steps.iter().position(|&k| k >= 2000).unwrap_or(0);

@@ -15,6 +15,10 @@ pub struct Faults {
     observed: Vec<bool>,
     comm: Vec<f64>,
     present: Vec<bool>,
+    /// Whether a neighbour's message can be lost by itself (an agent on a real network); then
+    /// `hears` holds, per edge and run, whether it was heard (and observed).
+    messages_lost: bool,
+    hears: Vec<bool>,
 }
 
 impl Faults {
@@ -28,6 +32,8 @@ impl Faults {
             observed: vec![true; edges.len() * runs],
             comm: Vec::new(),
             present: vec![true; agents * runs],
+            messages_lost: false,
+            hears: Vec::new(),
         }
     }
 
@@ -57,6 +63,26 @@ impl Faults {
         &self.observed[e * self.runs..(e + 1) * self.runs]
     }
 
+    /// Whether agent `i` heard neighbour `j` over edge `e = (i, j)` in run `r` this step: the
+    /// message the estimator needs from `j` (its input, or GA-RKF's consensus terms) arrived.
+    /// In the simulator one availability draw removes the measurement and the message together,
+    /// so this is [`Faults::observed`]; an agent on a real network can lose the message alone
+    /// ([`crate::agent`]).
+    #[inline]
+    pub fn hears(&self, e: usize, r: usize) -> bool {
+        self.hears_row(e)[r]
+    }
+
+    /// [`Faults::hears`] for every run of edge `e`.
+    #[inline]
+    pub fn hears_row(&self, e: usize) -> &[bool] {
+        if self.messages_lost {
+            &self.hears[e * self.runs..(e + 1) * self.runs]
+        } else {
+            self.observed_row(e)
+        }
+    }
+
     /// Whether neighbour `j`'s input `u^j_{k−1}` reached agent `i` over edge `e = (i, j)` in run
     /// `r`, for an estimator whose links lose the message with probability `p_fail` per step
     /// (thesis §6.1). One availability draw removes the measurement and the message together
@@ -65,7 +91,7 @@ impl Faults {
     /// `p_fail` are paired.
     #[inline]
     pub fn input_arrives(&self, e: usize, r: usize, p_fail: f64) -> bool {
-        if !self.observed(e, r) || p_fail >= 1.0 {
+        if !self.hears(e, r) || p_fail >= 1.0 {
             return false;
         }
         p_fail <= 0.0 || self.comm[e * self.runs + r] >= p_fail
@@ -78,7 +104,7 @@ impl Faults {
     /// When `lost` is not one entry per run.
     #[inline(always)]
     pub fn inputs_lost(&self, e: usize, p_fail: f64, lost: &mut [bool]) {
-        let observed = self.observed_row(e);
+        let observed = self.hears_row(e);
         assert_eq!(lost.len(), observed.len(), "one entry per run");
         if p_fail >= 1.0 {
             lost.fill(true);
@@ -111,23 +137,27 @@ impl Faults {
         self.agents
     }
 
-    /// Mutable access for the faults stage (crate-internal).
+    /// Mutable access for the faults stage and the agents (crate-internal).
     pub(crate) fn parts_mut(&mut self) -> FaultsMut<'_> {
         FaultsMut {
             measurement_faults: &mut self.measurement_faults,
             observed: &mut self.observed,
             comm: &mut self.comm,
             present: &mut self.present,
+            messages_lost: &mut self.messages_lost,
+            hears: &mut self.hears,
         }
     }
 }
 
-/// The faults stage's write access to [`Faults`].
+/// Write access to [`Faults`].
 pub(crate) struct FaultsMut<'a> {
     pub(crate) measurement_faults: &'a mut bool,
     pub(crate) observed: &'a mut Vec<bool>,
     pub(crate) comm: &'a mut Vec<f64>,
     pub(crate) present: &'a mut Vec<bool>,
+    pub(crate) messages_lost: &'a mut bool,
+    pub(crate) hears: &'a mut Vec<bool>,
 }
 
 /// The target formation at this step (Li & Rajan eq. 2: `Z* = Θ* P + t* 1ᵀ`), when the scenario

@@ -28,14 +28,14 @@ fn minimal_scenario_has_the_papers_defaults_and_runs() {
     assert_eq!((sc.samples(), sc.every(), sc.paths_run()), (10, 10, 0));
     let m = sc.model();
     // σ_v = 0.1, ρ = 0.3: R = σ_v² [[1, .3], [.3, 1]] (to the rounding of two products).
-    assert!((m.r[0][(0, 0)] - 0.01).abs() < 1e-16 && (m.r[0][(0, 1)] - 0.003).abs() < 1e-16);
+    assert!((m.r()[0][(0, 0)] - 0.01).abs() < 1e-16 && (m.r()[0][(0, 1)] - 0.003).abs() < 1e-16);
     // σ_w = 0.001 with the thesis kernel (unit diagonal): Q_ii = σ_w².
-    assert!((m.q[(0, 0)] - 1e-6).abs() < 1e-20);
+    assert!((m.q()[(0, 0)] - 1e-6).abs() < 1e-20);
     assert!(
-        m.q[(0, 2)] > 0.0,
+        m.q()[(0, 2)] > 0.0,
         "the spatial kernel (4.14) correlates agents"
     );
-    assert_eq!(m.p, nalgebra::DMatrix::identity(2, 2));
+    assert_eq!(*m.p(), nalgebra::DMatrix::identity(2, 2));
     let sc = sc.with_steps(300).unwrap().with_runs(2).unwrap();
     let res = run(&sc);
     assert_eq!(res.estimator("rkf").unwrap().outcome, Outcome::Completed);

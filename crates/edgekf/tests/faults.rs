@@ -55,9 +55,9 @@ impl Configured for Config {
             shared: self.0.clone(),
             slot: logs.len() - 1,
             edges: m.num_edges(),
-            agents: m.agents,
+            agents: m.agents(),
             runs,
-            x: vec![0.0; m.num_edges() * m.dim * runs],
+            x: vec![0.0; m.num_edges() * m.dim() * runs],
         })
     }
     fn cost(&self, _m: &Model) -> Cost {

@@ -56,7 +56,7 @@ impl Configured for Config {
         Box::new(Smoother {
             alpha: self.0.alpha,
             fail_at: self.0.fail_at,
-            x: vec![0.0; m.num_edges() * m.dim * runs],
+            x: vec![0.0; m.num_edges() * m.dim() * runs],
             broken: None,
         })
     }

@@ -54,7 +54,7 @@ impl EstimatorKind for Kind {
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         parse_options::<NoOptions>(o)?;
-        if m.r.iter().any(|r| r.clone().cholesky().is_none()) {
+        if m.r().iter().any(|r| r.clone().cholesky().is_none()) {
             return Err(
                 "crkf runs in information form and needs positive definite measurement covariances (noise.sigma_v > 0)"
                     .into(),
@@ -75,8 +75,8 @@ impl Configured for Config {
         Box::new(Crkf::new(m, samples, runs, self.shared_gain(m)))
     }
     fn cost(&self, m: &Model) -> Cost {
-        let nz = ((m.agents - 1) * m.dim) as f64;
-        let md = (m.num_edges() * m.dim) as f64;
+        let nz = ((m.agents() - 1) * m.dim()) as f64;
+        let md = (m.num_edges() * m.dim()) as f64;
         // Two Cholesky inversions (≈ nz³ each with the solves) per covariance step.
         let inv = 2.0 * nz * nz * nz;
         if self.shared_gain(m) {
@@ -185,8 +185,8 @@ impl Crkf {
     /// # Panics
     /// If a measurement covariance is singular (the kind refuses that).
     pub fn new(m: &Model, samples: usize, runs: usize, shared: bool) -> Self {
-        let d = m.dim;
-        let nz = (m.agents - 1) * d;
+        let d = m.dim();
+        let nz = (m.agents() - 1) * d;
         let mut w_inv = Vec::with_capacity(m.num_edges() * d * d);
         let mut w_inv_m = Vec::with_capacity(m.num_edges());
         for w in &m.mean_cov(samples) {
@@ -201,18 +201,18 @@ impl Crkf {
         let mut gtg = DMatrix::zeros(nz, nz);
         let mut q = DMatrix::zeros(nz, nz);
         let mut sigma0 = DMatrix::zeros(nz, nz);
-        for a in 1..m.agents {
-            for b in 1..m.agents {
+        for a in 1..m.agents() {
+            for b in 1..m.agents() {
                 let (ra, rb) = ((a - 1) * d, (b - 1) * d);
                 let qb = m.q_block(a, b) - m.q_block(a, 0) - m.q_block(0, b) + m.q_block(0, 0);
                 q.view_mut((ra, rb), (d, d)).copy_from(&qb);
-                let p = &m.p * if a == b { 2.0 } else { 1.0 };
+                let p = m.p() * if a == b { 2.0 } else { 1.0 };
                 sigma0.view_mut((ra, rb), (d, d)).copy_from(&p);
             }
         }
         for (e, wi) in w_inv_m.iter().enumerate() {
-            add_edge_information(&mut j, m.edges[e], d, wi);
-            let (i, k) = m.edges[e];
+            add_edge_information(&mut j, m.edges()[e], d, wi);
+            let (i, k) = m.edges()[e];
             for (a, ca) in [(i, 1.0), (k, -1.0)] {
                 for (b, cb) in [(i, 1.0), (k, -1.0)] {
                     if a > 0 && b > 0 {
@@ -234,7 +234,7 @@ impl Crkf {
         Self {
             runs,
             dim: d,
-            edges: m.edges.clone(),
+            edges: m.edges().to_vec(),
             w_inv,
             w_inv_m,
             q,

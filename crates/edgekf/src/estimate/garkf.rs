@@ -81,10 +81,12 @@ use super::ral::{
     RalVariant, DEFAULT_RANK_TOL,
 };
 use super::rkf_ca::{
-    ca_cost, check_ca, default_sigma_w, pcrb_runs, quantity_ca, Bound, CaEdges, PcrbTrack,
+    agent_quantity_ca, ca_cost, check_ca, default_sigma_w, pcrb_runs, provides_ca, Bound, CaEdges,
+    PcrbTrack,
 };
 use super::{
-    options_of, parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    cov_trace_of_agents, options_of, parse_options, quantity_of_agents, Configured, Cost,
+    Estimator, EstimatorKind, Exchange, Model, Options, Step,
 };
 
 /// `kind = "garkf"`.
@@ -147,9 +149,9 @@ fn default_rank_tol() -> f64 {
 /// A message when the eigenvalues do not converge.
 pub fn nominal_epsilon_bound(m: &Model) -> Result<f64, String> {
     let s = consensus_stability(
-        m.agents,
-        &m.edges,
-        &vec![true; m.agents],
+        m.agents(),
+        &m.edges(),
+        &vec![true; m.agents()],
         InfeasibleRal::Masked,
         0.0,
     )
@@ -179,14 +181,14 @@ impl EstimatorKind for GarkfKind {
                 opt.ral_rank_tol
             ));
         }
-        if matches!(opt.ral, RalVariant::Rotation | RalVariant::Similarity) && m.dim < 2 {
+        if matches!(opt.ral, RalVariant::Rotation | RalVariant::Similarity) && m.dim() < 2 {
             return Err(format!(
                 "option `ral`: `{}` needs D = 2 or 3, got D = {}",
                 serde_json::to_value(opt.ral)
                     .ok()
                     .and_then(|v| v.as_str().map(str::to_string))
                     .unwrap_or_default(),
-                m.dim
+                m.dim()
             ));
         }
         let bound = nominal_epsilon_bound(m)?;
@@ -249,7 +251,7 @@ impl Configured for Config {
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
         let st = self.settings();
-        match m.dim {
+        match m.dim() {
             1 => Box::new(Garkf::<1>::new(
                 m,
                 st,
@@ -295,9 +297,9 @@ impl Configured for Config {
             m,
             matches!(self.opt.ral, RalVariant::General | RalVariant::Translation),
         );
-        let d2 = (m.dim * m.dim) as f64;
-        c.bytes_per_run += m.agents as f64 * 8.0 * (6.0 * d2 + 4.0);
-        c.flops_per_run_step += m.num_edges() as f64 * 12.0 * d2 + m.agents as f64 * 40.0 * d2;
+        let d2 = (m.dim() * m.dim()) as f64;
+        c.bytes_per_run += m.agents() as f64 * 8.0 * (6.0 * d2 + 4.0);
+        c.flops_per_run_step += m.num_edges() as f64 * 12.0 * d2 + m.agents() as f64 * 40.0 * d2;
         c
     }
 
@@ -325,7 +327,8 @@ pub struct Garkf<const D: usize> {
     pcrb: Option<Box<dyn PcrbTrack<D>>>,
     st: Settings,
     opts: RalOptions,
-    agents: usize,
+    /// The agents whose filters run here: every agent, or one (an agent on its own).
+    owners: Range<usize>,
     /// N of (17).
     n_agents: f64,
     agent_edges: Vec<Range<usize>>,
@@ -359,14 +362,14 @@ impl<const D: usize> Garkf<D> {
         runs: usize,
         pcrb: Option<Box<dyn PcrbTrack<D>>>,
     ) -> Self {
-        let fw = &m.framework;
+        let fw = &m.framework();
         let p: Vec<Vect<D>> = m
-            .edges
+            .edges()
             .iter()
             .map(|&(i, j)| Vect::<D>::from_fn(|a, _| fw.point(i)[a] - fw.point(j)[a]))
             .collect();
         let pp = p.iter().map(|v| v * v.transpose()).collect();
-        let na = m.agents * runs;
+        let na = m.agents() * runs;
         Self {
             // R̃ is diagonal in W's eigenbasis for the general RAL ((15): a multiple of W, plus
             // ψ I) and the translation RAL (ψ I); the other variants' R^ral are not.
@@ -377,16 +380,16 @@ impl<const D: usize> Garkf<D> {
                 runs,
                 matches!(st.variant, RalVariant::General | RalVariant::Translation),
             ),
-            metric_edge: m.metric_edge,
+            metric_edge: m.metric_edge(),
             pcrb,
             st,
             opts: RalOptions {
                 rank_tol: st.rank_tol,
                 ..RalOptions::default()
             },
-            agents: m.agents,
-            n_agents: m.agents as f64,
-            agent_edges: m.agent_edges.clone(),
+            owners: m.owners(),
+            n_agents: m.agents() as f64,
+            agent_edges: m.agent_edges().to_vec(),
             p,
             pp,
             feasible: vec![false; na],
@@ -450,7 +453,7 @@ impl<const D: usize> Garkf<D> {
         let runs = self.ca.runs;
         let f = s.faults;
         let faults = f.measurement_faults();
-        for i in 0..self.agents {
+        for i in self.owners.clone() {
             for sums in &mut self.sums {
                 sums.gram = Mat::<D>::zeros();
                 sums.cross = Mat::<D>::zeros();
@@ -495,12 +498,12 @@ impl<const D: usize> Garkf<D> {
         let f = s.faults;
         let faults = f.measurement_faults();
         let literal = self.st.mode == InfeasibleRal::Literal;
-        for i in 0..self.agents {
+        for i in self.owners.clone() {
             self.psi_sum.fill(0.0);
             self.count.fill(0);
             let own = &self.theta_ral[i * runs..(i + 1) * runs];
             for e in self.agent_edges[i].clone() {
-                let observed = f.observed_row(e);
+                let observed = f.hears_row(e);
                 let j = self.ca.edges[e].1;
                 let other = &self.theta_ral[j * runs..(j + 1) * runs];
                 let other_feasible = &self.feasible[j * runs..(j + 1) * runs];
@@ -531,7 +534,7 @@ impl<const D: usize> Garkf<D> {
         let f = s.faults;
         let faults = f.measurement_faults();
         let literal = self.st.mode == InfeasibleRal::Literal;
-        for i in 0..self.agents {
+        for i in self.owners.clone() {
             let rows = i * runs..(i + 1) * runs;
             let prev = &self.theta_prev[rows.clone()];
             let (own_ral, own_feasible) = (&self.theta_ral[rows.clone()], &self.feasible[rows]);
@@ -543,7 +546,7 @@ impl<const D: usize> Garkf<D> {
                 };
             }
             for e in self.agent_edges[i].clone() {
-                let observed = f.observed_row(e);
+                let observed = f.hears_row(e);
                 let j = self.ca.edges[e].1;
                 let other_prev = &self.theta_prev[j * runs..(j + 1) * runs];
                 let other_ral = &self.theta_ral[j * runs..(j + 1) * runs];
@@ -635,14 +638,93 @@ impl<const D: usize> Garkf<D> {
     }
 }
 
-impl<const D: usize> Estimator for Garkf<D> {
-    fn step(&mut self, s: &Step<'_>) {
+impl<const D: usize> Garkf<D> {
+    /// Agent `i`'s value of a per-agent quantity in run `r` (`None`: it does not count).
+    fn agent_value(&self, name: &str, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        let f = s.faults;
+        if f.measurement_faults() && !f.present(i, r) {
+            return None;
+        }
+        let k = i * self.ca.runs + r;
+        let literal = self.st.mode == InfeasibleRal::Literal;
+        let ral = name.starts_with("theta_ral");
+        if ral && !(literal || self.feasible[k]) {
+            return None;
+        }
+        let th = if ral {
+            self.theta_ral[k]
+        } else {
+            self.theta[k]
+        };
+        match name {
+            "psi" => self.has_psi[k].then(|| self.psi[k]),
+            "theta_error" | "theta_ral_error" => {
+                let t = s.target?;
+                let star = Mat::<D>::from_fn(|a, b| t.theta[a * D + b]);
+                Some((th - star).norm_squared())
+            }
+            _ => Some(th.trace()),
+        }
+    }
+}
+
+/// GA-RKF's per-agent quantities beyond the CA filter's.
+const AGENT_QUANTITIES: &[&str] = &[
+    "psi",
+    "theta_error",
+    "theta_ral_error",
+    "theta_trace",
+    "theta_trace_min",
+    "theta_trace_max",
+    "theta_ral_trace",
+    "theta_ral_trace_min",
+    "theta_ral_trace_max",
+];
+
+/// Values in an agent's message: `Θ̂^ral_{i,k}`, whether it is feasible, `Θ̂_{i,k−1}`.
+const fn message_len(d: usize) -> usize {
+    2 * d * d + 1
+}
+
+impl<const D: usize> Exchange for Garkf<D> {
+    fn message_len(&self) -> usize {
+        message_len(D)
+    }
+
+    /// Lines 3–8: the RAL of every owned agent.
+    fn prepare(&mut self, s: &Step<'_>) {
         self.ral(s);
+    }
+
+    fn message(&self, i: usize, r: usize, out: &mut [f64]) {
+        let k = i * self.ca.runs + r;
+        out[..D * D].copy_from_slice(self.theta_ral[k].as_slice());
+        out[D * D] = f64::from(u8::from(self.feasible[k]));
+        out[D * D + 1..message_len(D)].copy_from_slice(self.theta[k].as_slice());
+    }
+
+    /// Stores `Θ̂^ral_{j,k}`, its feasibility and `Θ̂_{j,k−1}` where the consensus reads them.
+    fn receive(&mut self, j: usize, r: usize, msg: &[f64]) {
+        let k = j * self.ca.runs + r;
+        self.theta_ral[k] = Mat::<D>::from_column_slice(&msg[..D * D]);
+        self.feasible[k] = msg[D * D] != 0.0;
+        self.theta[k] = Mat::<D>::from_column_slice(&msg[D * D + 1..message_len(D)]);
+    }
+
+    /// Lines 10–21: ψ, the consensus, and every owned edge.
+    fn finish(&mut self, s: &Step<'_>) {
         self.indicator(s);
         self.consensus(s);
         for e in 0..self.ca.edges.len() {
             self.edge_step(e, s);
         }
+    }
+}
+
+impl<const D: usize> Estimator for Garkf<D> {
+    fn step(&mut self, s: &Step<'_>) {
+        self.prepare(s);
+        self.finish(s);
     }
 
     fn estimates(&self) -> &[f64] {
@@ -650,97 +732,33 @@ impl<const D: usize> Estimator for Garkf<D> {
     }
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        self.ca.cov_trace(s, out);
+        cov_trace_of_agents(self, s, out);
+    }
+
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        Some(self.ca.agent_cov_trace(i, r, s))
     }
 
     fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
-        let runs = self.ca.runs;
-        let f = s.faults;
-        let faults = f.measurement_faults();
-        let present = |i: usize, r: usize| !faults || f.present(i, r);
-        let literal = self.st.mode == InfeasibleRal::Literal;
-        match name {
-            "psi" => {
-                for (r, o) in out.iter_mut().enumerate() {
-                    let (mut sum, mut n) = (0.0, 0usize);
-                    for i in (0..self.agents).filter(|&i| present(i, r)) {
-                        let k = i * runs + r;
-                        if self.has_psi[k] {
-                            sum += self.psi[k];
-                            n += 1;
-                        }
-                    }
-                    *o = if n > 0 { sum / n as f64 } else { f64::NAN };
-                }
-                true
-            }
-            "theta_error" | "theta_ral_error" => {
-                let Some(t) = s.target else {
-                    return false;
-                };
-                let star = Mat::<D>::from_fn(|a, b| t.theta[a * D + b]);
-                let ral = name == "theta_ral_error";
-                for (r, o) in out.iter_mut().enumerate() {
-                    let (mut sum, mut n) = (0.0, 0usize);
-                    for i in (0..self.agents).filter(|&i| present(i, r)) {
-                        let k = i * runs + r;
-                        let th = if ral {
-                            if !(literal || self.feasible[k]) {
-                                continue;
-                            }
-                            self.theta_ral[k]
-                        } else {
-                            self.theta[k]
-                        };
-                        sum += (th - star).norm_squared();
-                        n += 1;
-                    }
-                    *o = if n > 0 { sum / n as f64 } else { f64::NAN };
-                }
-                true
-            }
-            "theta_trace"
-            | "theta_trace_min"
-            | "theta_trace_max"
-            | "theta_ral_trace"
-            | "theta_ral_trace_min"
-            | "theta_ral_trace_max" => {
-                let ral = name.starts_with("theta_ral");
-                let stat = if name.ends_with("_min") {
-                    -1
-                } else if name.ends_with("_max") {
-                    1
-                } else {
-                    0
-                };
-                for (r, o) in out.iter_mut().enumerate() {
-                    let (mut sum, mut n) = (0.0, 0usize);
-                    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                    for i in (0..self.agents).filter(|&i| present(i, r)) {
-                        let k = i * runs + r;
-                        let tr = if ral {
-                            if !(literal || self.feasible[k]) {
-                                continue;
-                            }
-                            self.theta_ral[k].trace()
-                        } else {
-                            self.theta[k].trace()
-                        };
-                        sum += tr;
-                        n += 1;
-                        lo = lo.min(tr);
-                        hi = hi.max(tr);
-                    }
-                    *o = match (n, stat) {
-                        (0, _) => f64::NAN,
-                        (_, -1) => lo,
-                        (_, 1) => hi,
-                        _ => sum / n as f64,
-                    };
-                }
-                true
-            }
-            other => quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), other, out),
+        let ours = AGENT_QUANTITIES.contains(&name);
+        let needs_target = name.starts_with("theta_") && name.ends_with("_error");
+        if !(ours || provides_ca(self.metric_edge, self.pcrb.as_deref(), name))
+            || (needs_target && s.target.is_none())
+        {
+            return false;
         }
+        quantity_of_agents(self, name, s, out);
+        true
+    }
+
+    fn agent_quantity(&self, name: &str, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        if AGENT_QUANTITIES.contains(&name) {
+            return self.agent_value(name, i, r, s);
+        }
+        agent_quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), name, (i, r))
+    }
+
+    fn exchange(&mut self) -> Option<&mut dyn Exchange> {
+        Some(self)
     }
 }

@@ -38,7 +38,7 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::{
+use super::{cov_trace_of_agents, 
     check_kalman, options_of, parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind,
     Model, Options, Step,
 };
@@ -88,11 +88,11 @@ impl EstimatorKind for JrkfArKind {
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
         let opt: ArOptions = parse_options(o)?;
-        let p = opt.p_fail.unwrap_or(m.p_fail);
+        let p = opt.p_fail.unwrap_or(m.p_fail());
         if !(0.0..=1.0).contains(&p) {
             return Err(format!("option `p_fail` must lie in [0, 1], got {p}"));
         }
-        if m.ar.is_none() {
+        if m.ar().is_none() {
             return Err(
                 "jrkf-ar needs an AR model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
                     .into(),
@@ -119,14 +119,14 @@ impl Configured for Config {
         Box::new(Jrkf::new(m, samples, runs, self.ar, self.shared_gain(m)))
     }
     fn cost(&self, m: &Model) -> Cost {
-        let d = m.dim as f64;
+        let d = m.dim() as f64;
         let cubes: f64 = m
-            .agent_edges
+            .agent_edges()
             .iter()
             .map(|r| (r.len() as f64 * d).powi(3))
             .sum();
         let squares: f64 = m
-            .agent_edges
+            .agent_edges()
             .iter()
             .map(|r| (r.len() as f64 * d).powi(2))
             .sum();
@@ -135,7 +135,7 @@ impl Configured for Config {
             Cost {
                 bytes_per_run: md * 8.0 * 2.0,
                 bytes_shared: squares * 8.0 * 8.0,
-                flops_per_run_step: 2.0 * squares / m.agents.max(1) as f64 + 2.0 * md,
+                flops_per_run_step: 2.0 * squares / m.agents().max(1) as f64 + 2.0 * md,
                 flops_shared_step: 6.0 * cubes,
             }
         } else {
@@ -148,7 +148,7 @@ impl Configured for Config {
         }
     }
     fn shared_gain(&self, m: &Model) -> bool {
-        !m.measurement_faults && self.ar.is_none_or(|p| p <= 0.0 || p >= 1.0)
+        !m.measurement_faults() && self.ar.is_none_or(|p| p <= 0.0 || p >= 1.0)
     }
     fn link_failure(&self) -> Option<f64> {
         self.ar
@@ -239,11 +239,11 @@ impl Block {
 
 /// The blocks of every agent, at `Σ_{0|0}`, and the largest block size.
 fn agent_blocks(m: &Model, samples: usize) -> (Vec<Block>, usize) {
-    let d = m.dim;
+    let d = m.dim();
     let w_edges = m.mean_cov(samples);
-    let mut blocks = Vec::with_capacity(m.agents);
+    let mut blocks = Vec::with_capacity(m.agents());
     let mut max_n = 0;
-    for range in &m.agent_edges {
+    for range in m.agent_edges() {
         let n = range.len() * d;
         max_n = max_n.max(n);
         let mut q = DMatrix::zeros(n, n);
@@ -311,7 +311,7 @@ impl Jrkf {
     /// For `runs` runs; `p_fail` makes it `jrkf-ar` (which needs `m.ar`); `shared` selects the
     /// shared-gain path (valid only when the gain does not depend on the data).
     pub fn new(m: &Model, samples: usize, runs: usize, p_fail: Option<f64>, shared: bool) -> Self {
-        let d = m.dim;
+        let d = m.dim();
         let (proto, max_n) = agent_blocks(m, samples);
         // Shared: one recursion per group of agents with identical blocks (same Q_i, R_i, Σ_0;
         // with white process noise the agents of equal degree form a group).
@@ -338,11 +338,11 @@ impl Jrkf {
                 .flat_map(|b| std::iter::repeat_n(b.clone(), runs))
                 .collect()
         };
-        let ar = p_fail.and(m.ar.as_ref());
+        let ar = p_fail.and(m.ar());
         let extra = ar.map(|ar| {
             DMatrix::from_fn(d, d, |a, b| {
                 if a == b {
-                    m.dt * m.dt * ar.noise_var[a]
+                    m.dt() * m.dt() * ar.noise_var[a]
                 } else {
                     0.0
                 }
@@ -351,11 +351,11 @@ impl Jrkf {
         Self {
             runs,
             dim: d,
-            dt: m.dt,
+            dt: m.dt(),
             shared,
             p_fail,
-            edges: m.edges.clone(),
-            agent_edges: m.agent_edges.clone(),
+            edges: m.edges().to_vec(),
+            agent_edges: m.agent_edges().to_vec(),
             coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
             extra,
             blocks,
@@ -367,7 +367,7 @@ impl Jrkf {
             seen: vec![true; max_n / d.max(1)],
             du: vec![0.0; max_n],
             innov: vec![0.0; max_n * runs],
-            hist: vec![vec![0.0; m.agents * d * runs]; ar.map_or(0, |a| a.order() + 1)],
+            hist: vec![vec![0.0; m.agents() * d * runs]; ar.map_or(0, |a| a.order() + 1)],
             breakdown: None,
         }
     }
@@ -530,23 +530,21 @@ impl Estimator for Jrkf {
     }
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        if self.shared {
-            // Summed over the agents in order (each agent's trace is its group's).
-            out.fill(
-                self.group
-                    .iter()
-                    .map(|&g| self.blocks[g].sigma.trace())
-                    .sum(),
-            );
-            return;
+        cov_trace_of_agents(self, s, out);
+    }
+
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        if self.agent_edges[i].is_empty() {
+            return Some(0.0);
         }
-        let r = self.runs;
-        for (run, o) in out.iter_mut().enumerate() {
-            *o = (0..self.agent_edges.len())
-                .filter(|&i| s.faults.present(i, run))
-                .map(|i| self.blocks[i * r + run].sigma.trace())
-                .sum();
-        }
+        Some(if self.shared {
+            // Each agent's trace is its group's.
+            self.blocks[self.group[i]].sigma.trace()
+        } else if s.faults.present(i, r) {
+            self.blocks[i * self.runs + r].sigma.trace()
+        } else {
+            0.0
+        })
     }
 
     fn breakdown(&self) -> Option<&Breakdown> {

@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
-use super::{parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
+use super::{cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
 
 /// `kind = "none"`: one raw sample per step.
 #[derive(Debug, Clone, Copy)]
@@ -70,7 +70,7 @@ impl Configured for Config {
         Box::new(Mle::new(m, samples, runs))
     }
     fn cost(&self, m: &Model) -> Cost {
-        let md = (m.num_edges() * m.dim) as f64;
+        let md = (m.num_edges() * m.dim()) as f64;
         Cost {
             bytes_per_run: md * 8.0,
             flops_per_run_step: md,
@@ -87,6 +87,8 @@ pub struct Mle {
     x: Vec<f64>,
     /// `tr(R_ij / T)` per edge.
     traces: Vec<f64>,
+    /// Each agent's edges.
+    owners: Vec<std::ops::Range<usize>>,
 }
 
 impl Mle {
@@ -94,9 +96,10 @@ impl Mle {
     pub fn new(m: &Model, samples: usize, runs: usize) -> Self {
         Self {
             runs,
-            dim: m.dim,
-            x: vec![0.0; m.num_edges() * m.dim * runs],
+            dim: m.dim(),
+            x: vec![0.0; m.num_edges() * m.dim() * runs],
             traces: m.mean_cov(samples).iter().map(|w| w.trace()).collect(),
+            owners: m.agent_edges().to_vec(),
         }
     }
 }
@@ -121,14 +124,13 @@ impl Estimator for Mle {
         &self.x
     }
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        for (r, o) in out.iter_mut().enumerate() {
-            *o = self
-                .traces
-                .iter()
-                .enumerate()
-                .filter(|&(e, _)| s.faults.observed(e, r))
-                .map(|(_, t)| t)
-                .sum();
-        }
+        cov_trace_of_agents(self, s, out);
+    }
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        Some(edge_trace_sum(
+            self.owners[i].clone(),
+            |e| s.faults.observed(e, r),
+            |e| self.traces[e],
+        ))
     }
 }

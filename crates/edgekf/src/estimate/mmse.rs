@@ -16,7 +16,7 @@ use std::sync::Arc;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::{
+use super::{cov_trace_of_agents, edge_trace_sum, 
     options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
     Options, Step,
 };
@@ -60,11 +60,11 @@ impl Configured for Config {
         options_of(&self.0)
     }
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        by_dim!(m.dim, D => Box::new(Mmse::<D>::new(m, samples, self.0.prior_var, runs)))
+        by_dim!(m.dim(), D => Box::new(Mmse::<D>::new(m, samples, self.0.prior_var, runs)))
     }
     fn cost(&self, m: &Model) -> Cost {
         let me = m.num_edges() as f64;
-        let d = m.dim as f64;
+        let d = m.dim() as f64;
         Cost {
             bytes_per_run: me * d * 8.0 * 2.0,
             flops_per_run_step: me * 2.0 * d * d,
@@ -79,6 +79,8 @@ pub struct Mmse<const D: usize> {
     runs: usize,
     gains: Vec<f64>,
     traces: Vec<f64>,
+    /// Each agent's edges.
+    owners: Vec<std::ops::Range<usize>>,
     posteriors: Vec<SMatrix<f64, D, D>>,
     x: Vec<f64>,
     innov: Vec<f64>,
@@ -105,6 +107,7 @@ impl<const D: usize> Mmse<D> {
             runs,
             gains,
             traces,
+            owners: m.agent_edges().to_vec(),
             posteriors,
             x: vec![0.0; m.num_edges() * D * runs],
             innov: vec![0.0; D * runs],
@@ -146,14 +149,13 @@ impl<const D: usize> Estimator for Mmse<D> {
         &self.x
     }
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        for (r, o) in out.iter_mut().enumerate() {
-            *o = self
-                .traces
-                .iter()
-                .enumerate()
-                .filter(|&(e, _)| s.faults.tracked(e, r))
-                .map(|(_, t)| t)
-                .sum();
-        }
+        cov_trace_of_agents(self, s, out);
+    }
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        Some(edge_trace_sum(
+            self.owners[i].clone(),
+            |e| s.faults.tracked(e, r),
+            |e| self.traces[e],
+        ))
     }
 }

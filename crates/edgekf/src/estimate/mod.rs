@@ -52,6 +52,7 @@ pub mod garkf;
 pub mod jrkf;
 pub mod mle;
 pub mod mmse;
+mod model;
 pub mod oracle;
 pub mod pcrb;
 pub mod ral;
@@ -66,10 +67,11 @@ use nalgebra::{DMatrix, SMatrix};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use crate::framework::Framework;
 pub use crate::step::{Faults, Step, Target};
 
 pub use ar::ArModel;
+pub use model::{Model, Scope};
+pub(crate) use model::ModelParts;
 
 /// An estimator's options as written in a scenario file (the entry without `kind`, `label` and
 /// `samples`).
@@ -102,72 +104,125 @@ pub trait Estimator: Send {
     fn breakdown(&self) -> Option<&Breakdown> {
         None
     }
+    /// Agent `i`'s part of [`Estimator::cov_trace`] in run `r`: the summed trace (from 0.0, in
+    /// edge order) of the posterior covariances of the tracked edges agent `i` owns; `None`
+    /// for an estimator that is not made of agents' parts (the centralised `crkf`). Where it is
+    /// `Some`, `cov_trace` is the sum of the parts in agent order ([`cov_trace_of_agents`]), so
+    /// a swarm of agents that each run their own part reproduces it bit for bit.
+    fn agent_cov_trace(&self, _i: usize, _r: usize, _s: &Step<'_>) -> Option<f64> {
+        None
+    }
+    /// Agent `i`'s value of the per-agent quantity `name` in run `r` (e.g. its ψ_i), `None`
+    /// where agent `i` does not count (departed, undefined, or not the owner of the metric
+    /// edge). Where an estimator provides it, [`Estimator::quantity`] summarises these over the
+    /// agents ([`quantity_of_agents`]).
+    fn agent_quantity(&self, _name: &str, _i: usize, _r: usize, _s: &Step<'_>) -> Option<f64> {
+        None
+    }
+    /// The two halves of a step for an estimator whose agents hear their neighbours *within*
+    /// the step (GA-RKF's consensus): `None` for the others. The engine calls
+    /// [`Estimator::step`], which is `prepare` then `finish`; an agent on a network sends its
+    /// message in between.
+    fn exchange(&mut self) -> Option<&mut dyn Exchange> {
+        None
+    }
 }
 
-/// The model every estimator is built from: the framework, the noise, Δt, and what the faults
-/// stage may do.
-#[derive(Debug, Clone)]
-pub struct Model {
-    /// The framework (configuration, graph, weights, leaders).
-    pub framework: Framework,
-    /// D.
-    pub dim: usize,
-    /// N.
-    pub agents: usize,
-    /// Directed edges in incidence order.
-    pub edges: Vec<(usize, usize)>,
-    /// Edge ranges of each agent (the columns of `B_i`).
-    pub agent_edges: Vec<std::ops::Range<usize>>,
-    /// Q (ND × ND).
-    pub q: DMatrix<f64>,
-    /// `R_ij` per directed edge (the covariance of one sample).
-    pub r: Vec<DMatrix<f64>>,
-    /// P, the covariance of each initial position.
-    pub p: DMatrix<f64>,
-    /// Δt.
-    pub dt: f64,
-    /// The AR model of the inputs (thesis chapter 6), if the scenario has one.
-    pub ar: Option<ArModel>,
-    /// The scenario-wide default link-failure probability of chapter 6 (`comm.p_fail`).
-    pub p_fail: f64,
-    /// Whether measurements can be missing (availability < 1, lost edges, departures).
-    pub measurement_faults: bool,
-    /// The directed edge whose covariance `edge_cov_trace` reports (`[metrics] edge`).
-    pub metric_edge: Option<usize>,
+/// The in-step exchange of an estimator whose agents hear their neighbours within a step.
+pub trait Exchange {
+    /// Values in one agent's message.
+    fn message_len(&self) -> usize;
+    /// The first half of step k: every owned agent's computations before it hears its
+    /// neighbours (GA-RKF: the RAL).
+    fn prepare(&mut self, s: &Step<'_>);
+    /// Agent `i`'s message in run `r`, after [`Exchange::prepare`].
+    fn message(&self, i: usize, r: usize, out: &mut [f64]);
+    /// Neighbour `j`'s message in run `r` (an agent stores what it heard; what it did not hear
+    /// the faults' [`Faults::hears`] leaves out).
+    fn receive(&mut self, j: usize, r: usize, msg: &[f64]);
+    /// The second half of step k.
+    fn finish(&mut self, s: &Step<'_>);
 }
 
-impl Model {
-    /// Number of directed edges M.
-    pub fn num_edges(&self) -> usize {
-        self.edges.len()
+/// How a per-agent quantity is summarised over the agents of a run: `…_min` and `…_max` take
+/// the extremes, every other quantity the mean.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AgentStat {
+    /// Mean over the agents that count.
+    Mean,
+    /// Smallest value.
+    Min,
+    /// Largest value.
+    Max,
+}
+
+impl AgentStat {
+    /// The summary of quantity `name`.
+    pub fn of(name: &str) -> Self {
+        if name.ends_with("_min") {
+            AgentStat::Min
+        } else if name.ends_with("_max") {
+            AgentStat::Max
+        } else {
+            AgentStat::Mean
+        }
     }
 
-    /// `R_ij / T` per edge: the covariance of the measurement mean.
-    pub fn mean_cov(&self, samples: usize) -> Vec<DMatrix<f64>> {
-        self.r.iter().map(|r| r / samples as f64).collect()
+    /// The summary of the values that count, in agent order (NaN when none does).
+    pub fn summarise(self, values: impl Iterator<Item = Option<f64>>) -> f64 {
+        let (mut sum, mut n) = (0.0, 0usize);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in values.flatten() {
+            sum += v;
+            n += 1;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        match (n, self) {
+            (0, _) => f64::NAN,
+            (_, AgentStat::Min) => lo,
+            (_, AgentStat::Max) => hi,
+            (_, AgentStat::Mean) => sum / n as f64,
+        }
     }
+}
 
-    /// The D × D block `(a, b)` of Q.
-    pub fn q_block(&self, a: usize, b: usize) -> DMatrix<f64> {
-        let d = self.dim;
-        self.q.view((a * d, b * d), (d, d)).into_owned()
+/// `cov_trace` as the sum over the agents, in order, of their parts
+/// ([`Estimator::agent_cov_trace`]).
+pub fn cov_trace_of_agents<E: Estimator + ?Sized>(est: &E, s: &Step<'_>, out: &mut [f64]) {
+    for (r, o) in out.iter_mut().enumerate() {
+        let mut t = 0.0;
+        for i in 0..s.faults.agents() {
+            t += est.agent_cov_trace(i, r, s).unwrap_or(0.0);
+        }
+        *o = t;
     }
+}
 
-    /// Cross-covariance of the process noise of edges `e` and `f`: block `(e, f)` of
-    /// `B̄ᵀ Q B̄` (thesis 5.9 / 4.26).
-    pub fn edge_q(&self, e: usize, f: usize) -> DMatrix<f64> {
-        let (a, b) = self.edges[e];
-        let (c, d) = self.edges[f];
-        self.q_block(a, c) - self.q_block(a, d) - self.q_block(b, c) + self.q_block(b, d)
+/// The sum from 0.0, in edge order, of `trace(e)` over the edges `e` of `edges` that `include`:
+/// one agent's part of `cov_trace` for filters with one covariance per edge.
+pub(crate) fn edge_trace_sum(
+    edges: std::ops::Range<usize>,
+    include: impl Fn(usize) -> bool,
+    trace: impl Fn(usize) -> f64,
+) -> f64 {
+    let mut t = 0.0;
+    for e in edges.filter(|&e| include(e)) {
+        t += trace(e);
     }
+    t
+}
 
-    /// Initial cross-covariance of edges `e` and `f`: block `(e, f)` of `BᵀB ⊗ P`
-    /// (thesis 5.7 / 4.28).
-    pub fn edge_p0(&self, e: usize, f: usize) -> DMatrix<f64> {
-        let (a, b) = self.edges[e];
-        let (c, d) = self.edges[f];
-        let ind = |x: usize, y: usize| f64::from(u8::from(x == y));
-        &self.p * (ind(a, c) - ind(a, d) - ind(b, c) + ind(b, d))
+/// A per-agent quantity summarised over the agents ([`AgentStat`]), per run.
+pub fn quantity_of_agents<E: Estimator + ?Sized>(
+    est: &E,
+    name: &str,
+    s: &Step<'_>,
+    out: &mut [f64],
+) {
+    let stat = AgentStat::of(name);
+    for (r, o) in out.iter_mut().enumerate() {
+        *o = stat.summarise((0..s.faults.agents()).map(|i| est.agent_quantity(name, i, r, s)));
     }
 }
 
@@ -200,7 +255,7 @@ pub trait Configured: fmt::Debug + Send + Sync {
     fn cost(&self, model: &Model) -> Cost;
     /// Whether its gain is shared by all runs (then `cov_trace` is deterministic).
     fn shared_gain(&self, model: &Model) -> bool {
-        !model.measurement_faults
+        !model.measurement_faults()
     }
     /// Its chapter 6 link-failure probability (the engine draws the failure uniforms when some
     /// estimator has one strictly between 0 and 1).
@@ -320,9 +375,9 @@ impl Registry {
 /// # Errors
 /// A message naming the keys to change.
 pub fn check_kalman(m: &Model, kind: &str) -> Result<(), String> {
-    for (e, r) in m.r.iter().enumerate() {
+    for (e, r) in m.r().iter().enumerate() {
         if r.clone().cholesky().is_none() && m.edge_q(e, e).cholesky().is_none() {
-            let (i, j) = m.edges[e];
+            let (i, j) = m.edges()[e];
             return Err(format!(
                 "{kind} is a Kalman filter and needs noise on edge ({i}, {j}): a positive definite measurement covariance (`noise.sigma_v` > 0) or process noise (`noise.sigma_w` > 0); for a noiseless run use `none` or `oracle`"
             ));

@@ -40,11 +40,11 @@ impl Configured for Config {
     }
     fn build(&self, m: &Model, _samples: usize, runs: usize) -> Box<dyn Estimator> {
         Box::new(Oracle {
-            x: vec![0.0; m.num_edges() * m.dim * runs],
+            x: vec![0.0; m.num_edges() * m.dim() * runs],
         })
     }
     fn cost(&self, m: &Model) -> Cost {
-        let md = (m.num_edges() * m.dim) as f64;
+        let md = (m.num_edges() * m.dim()) as f64;
         Cost {
             bytes_per_run: md * 8.0,
             flops_per_run_step: md,
@@ -71,5 +71,8 @@ impl Estimator for Oracle {
     }
     fn cov_trace(&self, _s: &Step<'_>, out: &mut [f64]) {
         out.fill(0.0);
+    }
+    fn agent_cov_trace(&self, _i: usize, _r: usize, _s: &Step<'_>) -> Option<f64> {
+        Some(0.0)
     }
 }

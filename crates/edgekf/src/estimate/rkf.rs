@@ -46,7 +46,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
-use super::{
+use super::{cov_trace_of_agents, edge_trace_sum, 
     check_kalman, options_of, parse_options, to_static, Breakdown, Configured, Cost, Estimator,
     EstimatorKind, Model, Options, Step,
 };
@@ -130,11 +130,11 @@ impl EstimatorKind for RkfArKind {
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
         let opt: ArOptions = parse_options(o)?;
-        let p = opt.p_fail.unwrap_or(m.p_fail);
+        let p = opt.p_fail.unwrap_or(m.p_fail());
         if !(0.0..=1.0).contains(&p) {
             return Err(format!("option `p_fail` must lie in [0, 1], got {p}"));
         }
-        if m.ar.is_none() {
+        if m.ar().is_none() {
             return Err(
                 "rkf-ar needs an AR model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
                     .into(),
@@ -159,12 +159,12 @@ impl Configured for Config {
     }
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        by_dim!(m.dim, D => Box::new(Rkf::<D>::new(m, samples, runs, self.0)))
+        by_dim!(m.dim(), D => Box::new(Rkf::<D>::new(m, samples, runs, self.0)))
     }
 
     fn cost(&self, m: &Model) -> Cost {
         let me = m.num_edges() as f64;
-        let d = m.dim as f64;
+        let d = m.dim() as f64;
         let per_run = !self.shared_gain(m);
         Cost {
             bytes_per_run: me * d * 8.0 * if per_run { 4.0 } else { 1.0 },
@@ -182,7 +182,7 @@ impl Configured for Config {
     }
 
     fn shared_gain(&self, m: &Model) -> bool {
-        !m.measurement_faults
+        !m.measurement_faults()
             && match self.0 {
                 Input::Ar { p_fail } => p_fail <= 0.0 || p_fail >= 1.0,
                 _ => true,
@@ -221,6 +221,8 @@ pub struct Rkf<const D: usize> {
     runs: usize,
     dt: f64,
     edges: Vec<(usize, usize)>,
+    /// Each agent's edges.
+    owners: Vec<std::ops::Range<usize>>,
     input: Input,
     q: Vec<Mat<D>>,
     w: Vec<Mat<D>>,
@@ -248,11 +250,11 @@ impl<const D: usize> Rkf<D> {
         let (coeffs, extra, hist) = match input {
             Input::Ar { .. } => {
                 let ar =
-                    m.ar.as_ref()
+                    m.ar()
                         .expect("rkf-ar is configured with an AR model");
                 let mut extra = Mat::<D>::zeros();
                 for d in 0..D {
-                    extra[(d, d)] = m.dt * m.dt * ar.noise_var[d];
+                    extra[(d, d)] = m.dt() * m.dt() * ar.noise_var[d];
                 }
                 (
                     ar.coeffs
@@ -260,7 +262,7 @@ impl<const D: usize> Rkf<D> {
                         .map(|a| std::array::from_fn(|d| a[d]))
                         .collect(),
                     extra,
-                    vec![vec![0.0; m.agents * D * runs]; ar.order() + 1],
+                    vec![vec![0.0; m.agents() * D * runs]; ar.order() + 1],
                 )
             }
             _ => (Vec::new(), Mat::<D>::zeros(), Vec::new()),
@@ -287,8 +289,9 @@ impl<const D: usize> Rkf<D> {
         };
         Self {
             runs,
-            dt: m.dt,
-            edges: m.edges.clone(),
+            dt: m.dt(),
+            edges: m.edges().to_vec(),
+            owners: m.agent_edges().to_vec(),
             input,
             q,
             w,
@@ -582,21 +585,20 @@ impl<const D: usize> Estimator for Rkf<D> {
     }
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        match &self.covs {
+        cov_trace_of_agents(self, s, out);
+    }
+
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        let own = self.owners[i].clone();
+        Some(match &self.covs {
+            // Each edge's trace is its group's.
             Covs::Shared { covs, group, .. } => {
-                // Summed over the edges in edge order (each edge's trace is its group's).
-                let t: f64 = group.iter().map(|&g| covs[g].sigma.trace()).sum();
-                out.fill(t);
+                edge_trace_sum(own, |_| true, |e| covs[group[e]].sigma.trace())
             }
             Covs::PerRun(bank) => {
-                for (r, o) in out.iter_mut().enumerate() {
-                    *o = (0..self.edges.len())
-                        .filter(|&e| s.faults.tracked(e, r))
-                        .map(|e| bank.trace(e, r))
-                        .sum();
-                }
+                edge_trace_sum(own, |e| s.faults.tracked(e, r), |e| bank.trace(e, r))
             }
-        }
+        })
     }
 
     fn breakdown(&self) -> Option<&Breakdown> {
@@ -625,11 +627,11 @@ mod tests {
                 .map(|e| EdgeCov::new(to_static::<2>(&m.edge_p0(e, e))))
                 .collect();
             let zeros_e = vec![0.0; ne * 2];
-            let zeros_n = vec![0.0; m.agents * 2];
-            let faults = Faults::none(m.agents, &m.edges, 1);
+            let zeros_n = vec![0.0; m.agents() * 2];
+            let faults = Faults::none(m.agents(), &m.edges(), 1);
             let step = Step {
                 k: 1,
-                dt: m.dt,
+                dt: m.dt(),
                 y: &zeros_e,
                 u_prev: &zeros_n,
                 du: &zeros_e,

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 
 use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
 use super::pcrb::{EdgePcrb, GaPrior, Observation};
-use super::{
+use super::{cov_trace_of_agents, quantity_of_agents, 
     options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
     Options, Step,
 };
@@ -69,13 +69,13 @@ pub(crate) fn check_ca(m: &Model, sigma_w: f64) -> Result<(), String> {
             "option `sigma_w` must be positive and finite, got {sigma_w}"
         ));
     }
-    if !(1..=3).contains(&m.dim) {
-        return Err(format!("the CA model needs D = 1, 2 or 3, got {}", m.dim));
+    if !(1..=3).contains(&m.dim()) {
+        return Err(format!("the CA model needs D = 1, 2 or 3, got {}", m.dim()));
     }
     let mut r_min = f64::INFINITY;
-    for (e, r) in m.r.iter().enumerate() {
+    for (e, r) in m.r().iter().enumerate() {
         if r.clone().cholesky().is_none() {
-            let (i, j) = m.edges[e];
+            let (i, j) = m.edges()[e];
             return Err(format!(
                 "the CA filters need a positive definite measurement covariance; edge ({i}, {j}) has none (key `noise.sigma_v`)"
             ));
@@ -86,12 +86,12 @@ pub(crate) fn check_ca(m: &Model, sigma_w: f64) -> Result<(), String> {
     // 1e8 times R the Joseph update and the PCRB lose their digits in f64 (measured: the PCRB
     // departs from the covariance at 1e10 and is NaN beyond; the covariance collapses to 1e-16
     // at 1e20).
-    let ratio = sigma_w * sigma_w * m.dt.powi(4) / 4.0 / r_min;
+    let ratio = sigma_w * sigma_w * m.dt().powi(4) / 4.0 / r_min;
     if ratio.is_nan() || ratio > MAX_PROCESS_TO_MEASUREMENT {
         return Err(format!(
             "option `sigma_w` = {sigma_w:e} adds a position variance σ_w²Δt⁴/4 = {:.3e} per step, {ratio:.1e} times the smallest measurement variance; f64 cannot carry a filter above {MAX_PROCESS_TO_MEASUREMENT:e} times (σ_w ≤ {:.3e} here)",
-            sigma_w * sigma_w * m.dt.powi(4) / 4.0,
-            (MAX_PROCESS_TO_MEASUREMENT * 4.0 * r_min).sqrt() / (m.dt * m.dt)
+            sigma_w * sigma_w * m.dt().powi(4) / 4.0,
+            (MAX_PROCESS_TO_MEASUREMENT * 4.0 * r_min).sqrt() / (m.dt() * m.dt())
         ));
     }
     Ok(())
@@ -130,20 +130,20 @@ impl Configured for Config {
     }
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        match m.dim {
+        match m.dim() {
             1 => Box::new(RkfCa::<1>::new(
                 CaEdges::new(m, self.sigma_w, samples, runs, true),
-                m.metric_edge,
+                m.metric_edge(),
                 pcrb_runs::<1, 3>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
             2 => Box::new(RkfCa::<2>::new(
                 CaEdges::new(m, self.sigma_w, samples, runs, true),
-                m.metric_edge,
+                m.metric_edge(),
                 pcrb_runs::<2, 6>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
             _ => Box::new(RkfCa::<3>::new(
                 CaEdges::new(m, self.sigma_w, samples, runs, true),
-                m.metric_edge,
+                m.metric_edge(),
                 pcrb_runs::<3, 9>(m, self.sigma_w, samples, runs, Bound::Rkf),
             )),
         }
@@ -166,9 +166,9 @@ impl Configured for Config {
 /// GA-RKF adds its own).
 pub(crate) fn ca_cost(m: &Model, axes_ok: bool) -> Cost {
     let me = m.num_edges() as f64;
-    let d = m.dim as f64;
+    let d = m.dim() as f64;
     let n = 3.0 * d;
-    let decoupled = match m.dim {
+    let decoupled = match m.dim() {
         1 => decouples::<1>(m, axes_ok),
         2 => decouples::<2>(m, axes_ok),
         _ => decouples::<3>(m, axes_ok),
@@ -248,6 +248,8 @@ pub(crate) struct CaEdges<const D: usize> {
     axis_model: CaModel<1>,
     pub(crate) runs: usize,
     pub(crate) edges: Vec<(usize, usize)>,
+    /// Each agent's edges.
+    owners: Vec<std::ops::Range<usize>>,
     /// One batch per directed edge.
     pub(crate) banks: Vec<CaBank<D>>,
     /// Per edge, while its covariance is the same in every run: that covariance, as a batch of
@@ -302,7 +304,7 @@ fn is_isotropic(p: &DMatrix<f64>) -> bool {
 pub(crate) fn decouples<const D: usize>(m: &Model, axes_ok: bool) -> bool {
     axes_ok
         && (0..m.num_edges()).all(|e| is_isotropic(&m.edge_p0(e, e)))
-        && common_axes::<D>(&m.r.iter().map(to_static::<D>).collect::<Vec<_>>()).is_some()
+        && common_axes::<D>(&m.r().iter().map(to_static::<D>).collect::<Vec<_>>()).is_some()
 }
 
 /// Relative size of the off-diagonal entries of `Uᵀ W U` below which `W` counts as diagonal in
@@ -337,7 +339,7 @@ impl<const D: usize> CaEdges<D> {
     /// # Panics
     /// If σ_w or Δt is not positive (the kinds check both) or D ∉ {1, 2, 3}.
     pub(crate) fn new(m: &Model, sigma_w: f64, samples: usize, runs: usize, axes_ok: bool) -> Self {
-        let model = CaModel::<D>::new(m.dt, sigma_w).expect("checked by the kind");
+        let model = CaModel::<D>::new(m.dt(), sigma_w).expect("checked by the kind");
         let ne = m.num_edges();
         let n = 3 * D;
         let w: Vec<SMatrix<f64, D, D>> = m.mean_cov(samples).iter().map(to_static::<D>).collect();
@@ -356,8 +358,15 @@ impl<const D: usize> CaEdges<D> {
             })
             .collect();
         let p0: Vec<DMatrix<f64>> = (0..ne).map(|e| m.edge_p0(e, e)).collect();
+        // The basis common to every edge of the formation (an agent's own filters take the
+        // same basis as the whole formation's, so their arithmetic is the same).
+        let w_all: Vec<SMatrix<f64, D, D>> = m
+            .formation_r()
+            .iter()
+            .map(|r| to_static::<D>(&(r / samples as f64)))
+            .collect();
         let axes = if axes_ok && p0.iter().all(is_isotropic) {
-            common_axes(&w)
+            common_axes(&w_all)
         } else {
             None
         };
@@ -378,7 +387,8 @@ impl<const D: usize> CaEdges<D> {
             model,
             axis_model: model.axis(),
             runs,
-            edges: m.edges.clone(),
+            edges: m.edges().to_vec(),
+            owners: m.agent_edges().to_vec(),
             banks,
             shared,
             axes: axes.map(|u| AxesBasis {
@@ -623,26 +633,24 @@ impl<const D: usize> CaEdges<D> {
         }
     }
 
-    /// `cov_trace`: per run, the position-block traces summed over the tracked edges.
-    pub(crate) fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        out.fill(0.0);
+    /// Agent `i`'s part of `cov_trace` in run `r`: the position-block traces summed over its
+    /// tracked edges.
+    pub(crate) fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> f64 {
         let faults = s.faults.measurement_faults();
-        for e in 0..self.banks.len() {
-            for d in 0..D {
-                for (r, o) in out.iter_mut().enumerate() {
-                    if !faults || s.faults.tracked(e, r) {
-                        *o += self.position_var(e, d, r);
-                    }
+        let mut t = 0.0;
+        for e in self.owners[i].clone() {
+            if !faults || s.faults.tracked(e, r) {
+                for d in 0..D {
+                    t += self.position_var(e, d, r);
                 }
             }
         }
+        t
     }
 
-    /// `edge_cov_trace` of edge `e`: the position-block trace per run.
-    pub(crate) fn edge_cov_trace(&self, e: usize, out: &mut [f64]) {
-        for (r, o) in out.iter_mut().enumerate() {
-            *o = (0..D).map(|d| self.position_var(e, d, r)).sum();
-        }
+    /// `edge_cov_trace` of edge `e` in run `r`: the position-block trace.
+    pub(crate) fn edge_cov_trace(&self, e: usize, r: usize) -> f64 {
+        (0..D).map(|d| self.position_var(e, d, r)).sum()
     }
 
     /// The posterior covariance (3D × 3D) of edge `e` in run `r`, in the model's axes
@@ -750,9 +758,9 @@ pub(crate) fn pcrb_runs<const D: usize, const S: usize>(
     runs: usize,
     bound: Bound,
 ) -> Option<Box<dyn PcrbTrack<D>>> {
-    let e = m.metric_edge?;
-    let model = CaModel::<D>::new(m.dt, sigma_w).ok()?;
-    let w = to_static::<D>(&(&m.r[e] / samples as f64));
+    let e = m.metric_edge()?;
+    let model = CaModel::<D>::new(m.dt(), sigma_w).ok()?;
+    let w = to_static::<D>(&(&m.r()[e] / samples as f64));
     let cov0 = initial_covariance::<D>(&m.edge_p0(e, e));
     let lambda0 = SMatrix::<f64, S, S>::from_fn(|a, b| cov0[(a, b)]);
     let one = EdgePcrb::<D, S>::new(&model, &w, &lambda0, GaPrior::Corrected).ok()?;
@@ -814,34 +822,52 @@ impl<const D: usize> Estimator for RkfCa<D> {
     }
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        self.ca.cov_trace(s, out);
+        cov_trace_of_agents(self, s, out);
     }
 
-    fn quantity(&self, name: &str, _s: &Step<'_>, out: &mut [f64]) -> bool {
-        quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), name, out)
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        Some(self.ca.agent_cov_trace(i, r, s))
+    }
+
+    fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
+        if !provides_ca(self.metric_edge, self.pcrb.as_deref(), name) {
+            return false;
+        }
+        quantity_of_agents(self, name, s, out);
+        true
+    }
+
+    fn agent_quantity(&self, name: &str, i: usize, r: usize, _s: &Step<'_>) -> Option<f64> {
+        agent_quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), name, (i, r))
     }
 }
 
-/// `edge_cov_trace` and `pcrb_trace` of a CA filter.
-pub(crate) fn quantity_ca<const D: usize>(
+/// Whether a CA filter provides `edge_cov_trace` / `pcrb_trace` (only with a metric edge).
+pub(crate) fn provides_ca<const D: usize>(
+    metric_edge: Option<usize>,
+    pcrb: Option<&dyn PcrbTrack<D>>,
+    name: &str,
+) -> bool {
+    match name {
+        "edge_cov_trace" => metric_edge.is_some(),
+        "pcrb_trace" => pcrb.is_some(),
+        _ => false,
+    }
+}
+
+/// Agent `i`'s `edge_cov_trace` and `pcrb_trace` in run `r` of a CA filter: the values of the
+/// metric edge, which its measuring agent owns (the other agents do not count).
+pub(crate) fn agent_quantity_ca<const D: usize>(
     ca: &CaEdges<D>,
     metric_edge: Option<usize>,
     pcrb: Option<&dyn PcrbTrack<D>>,
     name: &str,
-    out: &mut [f64],
-) -> bool {
+    (i, r): (usize, usize),
+) -> Option<f64> {
     match (name, metric_edge, pcrb) {
-        ("edge_cov_trace", Some(e), _) => {
-            ca.edge_cov_trace(e, out);
-            true
-        }
-        ("pcrb_trace", _, Some(p)) => {
-            for (r, o) in out.iter_mut().enumerate() {
-                *o = p.trace(r);
-            }
-            true
-        }
-        _ => false,
+        ("edge_cov_trace", Some(e), _) if ca.edges[e].0 == i => Some(ca.edge_cov_trace(e, r)),
+        ("pcrb_trace", _, Some(p)) if ca.edges[p.edge()].0 == i => Some(p.trace(r)),
+        _ => None,
     }
 }
 

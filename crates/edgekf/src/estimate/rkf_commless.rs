@@ -32,7 +32,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
-use super::{
+use super::{cov_trace_of_agents, edge_trace_sum, 
     check_kalman, parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind,
     Model, Options, Step,
 };
@@ -57,7 +57,7 @@ impl EstimatorKind for Kind {
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
-        match &m.ar {
+        match &m.ar() {
             None => Err(
                 "rkf-commless needs an AR(1) model of the inputs in `[comm.ar]` (fit one with `edgekf fit-ar`)"
                     .into(),
@@ -79,11 +79,11 @@ impl Configured for Config {
         Options::new()
     }
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        by_dim!(m.dim, D => Box::new(RkfCommless::<D>::new(m, samples, runs)))
+        by_dim!(m.dim(), D => Box::new(RkfCommless::<D>::new(m, samples, runs)))
     }
     fn cost(&self, m: &Model) -> Cost {
         let me = m.num_edges() as f64;
-        let d = m.dim as f64;
+        let d = m.dim() as f64;
         let shared = self.shared_gain(m);
         Cost {
             bytes_per_run: me * d * 8.0 * if shared { 3.0 } else { 8.0 },
@@ -119,6 +119,8 @@ pub struct RkfCommless<const D: usize> {
     runs: usize,
     dt: f64,
     edges: Vec<(usize, usize)>,
+    /// Each agent's edges.
+    owners: Vec<std::ops::Range<usize>>,
     a: Mat<D>,
     r0: Mat<D>,
     r1: Mat<D>,
@@ -143,14 +145,14 @@ impl<const D: usize> RkfCommless<D> {
     /// # Panics
     /// Without an AR(1) model in `m` (the kind checks it).
     pub fn new(m: &Model, samples: usize, runs: usize) -> Self {
-        let ar = m.ar.as_ref().expect("configured with an AR model");
+        let ar = m.ar().expect("configured with an AR model");
         assert_eq!(ar.order(), 1, "the communication-less predictor uses AR(1)");
         let ne = m.num_edges();
         let acov = ar.autocovariance(D, 1);
         let diag =
             |f: &dyn Fn(usize) -> f64| Mat::<D>::from_fn(|i, j| if i == j { f(i) } else { 0.0 });
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
-        let covs = if m.measurement_faults {
+        let covs = if m.measurement_faults() {
             Covs::PerRun {
                 bank: EdgeBank::new(&sigma0, runs),
                 sigma_prev: sigma0
@@ -169,8 +171,9 @@ impl<const D: usize> RkfCommless<D> {
         };
         Self {
             runs,
-            dt: m.dt,
-            edges: m.edges.clone(),
+            dt: m.dt(),
+            edges: m.edges().to_vec(),
+            owners: m.agent_edges().to_vec(),
             a: diag(&|d| ar.coeffs[0][d]),
             r0: diag(&|d| acov[d][0]),
             r1: diag(&|d| acov[d][1]),
@@ -179,7 +182,7 @@ impl<const D: usize> RkfCommless<D> {
             w: m.mean_cov(samples).iter().map(to_static::<D>).collect(),
             covs,
             x_prev: vec![0.0; ne * D * runs],
-            u_prev2: vec![0.0; m.agents * D * runs],
+            u_prev2: vec![0.0; m.agents() * D * runs],
             du: vec![0.0; D * runs],
             innov: vec![0.0; D * runs],
             utilde: vec![0.0; D * runs],
@@ -374,17 +377,17 @@ impl<const D: usize> Estimator for RkfCommless<D> {
     }
 
     fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
-        match &self.covs {
-            Covs::Shared { covs, .. } => out.fill(covs.iter().map(|c| c.sigma.trace()).sum()),
+        cov_trace_of_agents(self, s, out);
+    }
+
+    fn agent_cov_trace(&self, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        let own = self.owners[i].clone();
+        Some(match &self.covs {
+            Covs::Shared { covs, .. } => edge_trace_sum(own, |_| true, |e| covs[e].sigma.trace()),
             Covs::PerRun { bank, .. } => {
-                for (r, o) in out.iter_mut().enumerate() {
-                    *o = (0..self.edges.len())
-                        .filter(|&e| s.faults.tracked(e, r))
-                        .map(|e| bank.trace(e, r))
-                        .sum();
-                }
+                edge_trace_sum(own, |e| s.faults.tracked(e, r), |e| bank.trace(e, r))
             }
-        }
+        })
     }
 
     fn breakdown(&self) -> Option<&Breakdown> {

@@ -26,7 +26,7 @@ pub use sweep::SweepPoint;
 
 use crate::control::maneuver::{fig7b_keyframes, Hold, Maneuver, Trajectory};
 use crate::control::{FollowerLaw, LeaderMode};
-use crate::estimate::{Configured, Model, Registry};
+use crate::estimate::{Configured, Model, ModelParts, Registry};
 use crate::framework::Framework;
 use crate::noise::{agent_covariance, meas_covariance, normalise_config};
 use check::{check_cov, err, matrix, rows, Keys};
@@ -540,11 +540,17 @@ impl Scenario {
         }
         // Faults.
         let faults = check::faults(k, &d.faults, &fw, d.dt)?;
-        let model = Model {
-            dim,
-            agents: n,
-            edges: fw.graph().edges().to_vec(),
-            agent_edges: (0..n).map(|i| fw.graph().edges_of(i)).collect(),
+        // Metrics.
+        let metric_edge = match d.metrics.edge {
+            None => None,
+            Some([i, j]) => Some(fw.graph().edge_index(i, j).ok_or_else(|| {
+                err(
+                    k.key("metrics.edge"),
+                    format!("({i}, {j}) is not a directed edge of the graph"),
+                )
+            })?),
+        };
+        let model = Model::new(ModelParts {
             q: d.q,
             r: d.r,
             p: d.init_cov,
@@ -552,21 +558,9 @@ impl Scenario {
             ar: d.comm.ar.clone(),
             p_fail: d.comm.p_fail,
             measurement_faults: faults.any(),
-            metric_edge: None,
+            metric_edge,
             framework: fw,
-        };
-        // Metrics.
-        let metric_edge = match d.metrics.edge {
-            None => None,
-            Some([i, j]) => Some(model.framework.graph().edge_index(i, j).ok_or_else(|| {
-                err(
-                    k.key("metrics.edge"),
-                    format!("({i}, {j}) is not a directed edge of the graph"),
-                )
-            })?),
-        };
-        let mut model = model;
-        model.metric_edge = metric_edge;
+        });
         // Estimators.
         let estimators = check::estimators(
             d.estimators_key,
@@ -576,16 +570,16 @@ impl Scenario {
             d.registry,
         )?;
         // λ_max(L_ff) exactly, unless the cheap bound already shows the loop stable (large N).
-        let bound = lmax_followers_bound(&model.framework);
+        let bound = lmax_followers_bound(&model.framework());
         let gain = match law {
             FollowerLaw::Static { gain } => gain,
             FollowerLaw::Pi { alpha, .. } => alpha,
             FollowerLaw::VaryingVelocity => 0.0,
         };
-        let lmax_ff = if model.agents > 200 && d.dt * gain * bound < 1.0 {
+        let lmax_ff = if model.agents() > 200 && d.dt * gain * bound < 1.0 {
             bound
         } else {
-            lmax_followers(&model.framework)
+            lmax_followers(&model.framework())
         };
         let sc = Self {
             name: d.name,
@@ -625,7 +619,7 @@ impl Scenario {
 
     /// The resolved form: from it alone anyone can recompute the results.
     pub fn to_resolved(&self) -> Resolved {
-        let fw = &self.model.framework;
+        let fw = &self.model.framework();
         let d = fw.dim();
         Resolved {
             schema: SCHEMA.to_string(),
@@ -636,16 +630,16 @@ impl Scenario {
             edges: fw.graph().edges().iter().map(|&(i, j)| [i, j]).collect(),
             weights: fw.edge_weights(),
             leaders: fw.leaders().to_vec(),
-            dt: self.model.dt,
+            dt: self.model.dt(),
             steps: self.steps,
             runs: self.runs,
             seed: self.seed,
             samples_per_step: self.samples,
             init_mean: self.init_mean.clone(),
-            init_cov: rows(&self.model.p),
+            init_cov: rows(&self.model.p()),
             init_around: self.init_around,
-            process_cov: rows(&self.model.q),
-            meas_cov: self.model.r.iter().map(rows).collect(),
+            process_cov: rows(&self.model.q()),
+            meas_cov: self.model.r().iter().map(rows).collect(),
             estimators: self.estimators.iter().map(|e| e.label.clone()).collect(),
             estimator_specs: Some(self.estimators.iter().map(EstimatorDef::entry).collect()),
             description: self.description.clone(),
@@ -741,7 +735,7 @@ impl Scenario {
     fn recheck(&self, k: Keys) -> Result<(), ScenarioError> {
         check::sim(
             k,
-            self.model.dt,
+            self.model.dt(),
             self.steps,
             self.runs,
             self.samples,
@@ -751,14 +745,14 @@ impl Scenario {
         check::representable(
             k,
             &self.init_mean,
-            &self.model.p,
-            &self.model.q,
-            &self.model.r,
+            &self.model.p(),
+            &self.model.q(),
+            &self.model.r(),
             self.steps,
-            self.model.dt,
+            self.model.dt(),
         )?;
-        match &self.model.ar {
-            Some(ar) => check::ar_representable(k, ar, self.steps, self.model.dt),
+        match &self.model.ar() {
+            Some(ar) => check::ar_representable(k, ar, self.steps, self.model.dt()),
             None => Ok(()),
         }
     }
@@ -777,11 +771,11 @@ impl Scenario {
     }
     /// The framework.
     pub fn framework(&self) -> &Framework {
-        &self.model.framework
+        &self.model.framework()
     }
     /// Δt.
     pub fn dt(&self) -> f64 {
-        self.model.dt
+        self.model.dt()
     }
     /// Steps.
     pub fn steps(&self) -> usize {
@@ -897,7 +891,7 @@ impl Scenario {
     /// the discrete closed loop is stable below 2. For more than 200 agents whose loop is clearly
     /// stable this uses Gershgorin's upper bound of `λ_max` (then the value is below 1).
     pub fn step_bound(&self) -> f64 {
-        self.model.dt * self.gain() * self.lmax_ff
+        self.model.dt() * self.gain() * self.lmax_ff
     }
 
     /// The followers' gain of the static law (α of the PI law; 0 for the varying-velocity law).
@@ -946,10 +940,10 @@ impl Scenario {
                 k.key("sim.dt"),
                 format!(
                     "Δt·c·λ_max(L_ff) = {b:.3} ≥ 2: the followers' discrete closed loop is unstable (Δt = {}, c = {}, λ_max = {:.4}); lower Δt below {:.3e} or set `allow_divergence = true` to show the divergence",
-                    self.model.dt,
+                    self.model.dt(),
                     self.control.follower_gain,
-                    b / (self.model.dt * self.control.follower_gain),
-                    2.0 * self.model.dt / b
+                    b / (self.model.dt() * self.control.follower_gain),
+                    2.0 * self.model.dt() / b
                 ),
             ));
         }
@@ -961,11 +955,11 @@ impl Scenario {
     /// `allow_divergence`.
     fn check_law_stability(&self, k: Keys) -> Result<(), ScenarioError> {
         use crate::control::laws;
-        let fw = &self.model.framework;
+        let fw = &self.model.framework();
         if self.allow_divergence || fw.leaders().is_empty() {
             return Ok(());
         }
-        let dt = self.model.dt;
+        let dt = self.model.dt();
         let key = k.key("control.law");
         let part =
             laws::partition(fw.laplacian(), fw.leaders()).map_err(|e| err(key, e.to_string()))?;
@@ -1022,7 +1016,7 @@ impl Scenario {
                         ));
                     }
                     if let Some([a, b]) = inset {
-                        let end = self.steps as f64 * self.model.dt;
+                        let end = self.steps as f64 * self.model.dt();
                         if !(a.is_finite() && b.is_finite() && *a >= 0.0 && a < b && *b <= end) {
                             return Err(err(
                                 &format!("{key}.inset"),
@@ -1032,7 +1026,7 @@ impl Scenario {
                     }
                 }
                 PlotSpec::Inputs { agent, .. } => {
-                    let n = self.model.agents;
+                    let n = self.model.agents();
                     if *agent >= n {
                         return Err(err(
                             &format!("{key}.agent"),
@@ -1121,7 +1115,7 @@ impl Scenario {
                 "the followers' step bound Δt·c·λ_max = {b:.3} is close to or past 2 (key `sim.dt`)"
             ));
         }
-        let qmax = self.model.q.diagonal().max();
+        let qmax = self.model.q().diagonal().max();
         if qmax * self.steps as f64 > 1e100 {
             hints.push("the process noise is too large for f64 (key `noise.sigma_w`)".into());
         }

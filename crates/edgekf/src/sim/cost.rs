@@ -50,8 +50,8 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
 /// [`cost`] of the scenario alone (without its sweep points).
 fn cost_one(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let model = sc.model();
-    let d = model.dim as f64;
-    let n = model.agents as f64;
+    let d = model.dim() as f64;
+    let n = model.agents() as f64;
     let m = model.num_edges() as f64;
     let (nd, md) = (n * d, m * d);
     let reports = sc.report_count() as f64;
@@ -64,7 +64,7 @@ fn cost_one(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut per_run_flops = 0.0;
     let mut shared_flops = 0.0;
     let mut output_rows = 0.0;
-    let q = Factor::of(&model.q, model.dim);
+    let q = Factor::of(&model.q(), model.dim());
     let draws = md + nd;
     let world_flops = match q {
         Factor::Zero => 0.0,

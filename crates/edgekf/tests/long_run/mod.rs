@@ -111,7 +111,7 @@ impl Inner {
                 .flat_map(|e| (0..runs).map(move |r| dyn2(f.covariance(e, r))))
                 .collect(),
             Inner::Mmse(f) => (0..ne).map(|e| dyn2(f.covariance(e))).collect(),
-            Inner::Jrkf(f) => (0..m.agents)
+            Inner::Jrkf(f) => (0..m.agents())
                 .flat_map(|i| (0..runs).map(move |r| f.covariance(i, r).clone()))
                 .collect(),
             Inner::Crkf(f) => (0..runs).map(|r| f.node_covariance(r).clone()).collect(),
@@ -203,7 +203,7 @@ impl Configured for WatchConfig {
     }
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
         let k = &self.0;
-        let shared = !m.measurement_faults && k.p_fail.is_none_or(|p| p <= 0.0 || p >= 1.0);
+        let shared = !m.measurement_faults() && k.p_fail.is_none_or(|p| p <= 0.0 || p >= 1.0);
         let inner = match k.kind {
             "rkf" => Inner::Rkf(Rkf::new(m, samples, runs, Input::Known)),
             "rkf-ar" => Inner::Rkf(Rkf::new(
@@ -216,7 +216,7 @@ impl Configured for WatchConfig {
             )),
             "jrkf" => Inner::Jrkf(Jrkf::new(m, samples, runs, None, shared)),
             "jrkf-ar" => Inner::Jrkf(Jrkf::new(m, samples, runs, k.p_fail, shared)),
-            "crkf" => Inner::Crkf(Crkf::new(m, samples, runs, !m.measurement_faults)),
+            "crkf" => Inner::Crkf(Crkf::new(m, samples, runs, !m.measurement_faults())),
             "rkf-commless" => Inner::Commless(RkfCommless::new(m, samples, runs)),
             "mmse" => Inner::Mmse(Mmse::new(m, samples, 1e-3, runs)),
             other => panic!("no watch for {other}"),
@@ -237,7 +237,7 @@ impl Configured for WatchConfig {
         self.0.p_fail
     }
     fn shared_gain(&self, m: &Model) -> bool {
-        !m.measurement_faults && self.0.p_fail.is_none_or(|p| p <= 0.0 || p >= 1.0)
+        !m.measurement_faults() && self.0.p_fail.is_none_or(|p| p <= 0.0 || p >= 1.0)
     }
 }
 
