@@ -92,6 +92,7 @@
 // Index loops mirror the equations (agents, edges, dimensions) more clearly than iterator chains.
 #![allow(clippy::needless_range_loop)]
 
+pub mod agent;
 pub mod control;
 pub mod design;
 pub mod estimate;

@@ -120,6 +120,17 @@ impl Faults {
         }
     }
 
+    /// The chapter 6 link-failure uniforms of edges `first..first + count` in run 0 (empty when
+    /// none are drawn).
+    pub(crate) fn comm_row(&self, first: usize, count: usize) -> Vec<f64> {
+        if self.comm.is_empty() {
+            return Vec::new();
+        }
+        (first..first + count)
+            .map(|e| self.comm[e * self.runs])
+            .collect()
+    }
+
     /// Whether agent `i` is present (has not departed) in run `r`.
     #[inline]
     pub fn present(&self, i: usize, r: usize) -> bool {

@@ -172,6 +172,11 @@ impl Controller {
         }
     }
 
+    /// Δt.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
     /// The leaders' mode.
     pub fn leader_mode(&self) -> LeaderMode {
         self.leaders
@@ -179,105 +184,119 @@ impl Controller {
 
     /// Computes `u` (ND rows × runs).
     pub fn apply(&mut self, input: &ControlInput<'_>, u: &mut [f64]) {
+        let dr = self.dim * self.runs;
+        for (i, ui) in u.chunks_exact_mut(dr).enumerate() {
+            self.apply_agent(i, input, 0, ui);
+        }
+    }
+
+    /// Computes agent `i`'s input `u_i` (D rows × runs) from the edges it owns: `input.edges`
+    /// holds the edges of [`crate::estimate::Model::edges`] from edge `first` on (0 for every
+    /// agent's edges; agent `i`'s first edge when the input holds only its edges). The same
+    /// arithmetic as [`Controller::apply`], so an agent that computes its own input reproduces
+    /// the engine bit for bit.
+    pub fn apply_agent(
+        &mut self,
+        i: usize,
+        input: &ControlInput<'_>,
+        first: usize,
+        ui: &mut [f64],
+    ) {
         let (d, r) = (self.dim, self.runs);
-        let Self {
-            agents,
-            edges,
-            weights,
-            gamma,
-            leader_d2,
-            law,
-            leaders,
-            integral,
-            scratch,
-            dt,
-            ..
-        } = self;
-        u.fill(0.0);
-        for (i, (range, role)) in agents.iter().enumerate() {
-            let ui = &mut u[i * d * r..(i + 1) * d * r];
-            match (role, *leaders) {
-                (Role::Leader, LeaderMode::Target) => {
-                    if let Some(t) = input.next_target {
-                        for k in 0..d {
-                            let zk = &input.z[(i * d + k) * r..(i * d + k + 1) * r];
-                            for (uv, z) in ui[k * r..(k + 1) * r].iter_mut().zip(zk) {
-                                *uv = (t[i * d + k] - z) / *dt;
-                            }
-                        }
-                    }
-                }
-                (Role::Leader, LeaderMode::Distance { gain }) => {
-                    for e in range.clone() {
-                        let Some(d2) = leader_d2[e] else {
-                            continue;
-                        };
-                        let xe = &input.edges[e * d * r..(e + 1) * d * r];
-                        // s = ‖ẑ‖² − d² per run.
-                        scratch.fill(-d2);
-                        for k in 0..d {
-                            for (s, x) in scratch.iter_mut().zip(&xe[k * r..(k + 1) * r]) {
-                                *s += x * x;
-                            }
-                        }
-                        for k in 0..d {
-                            for ((uv, x), s) in ui[k * r..(k + 1) * r]
-                                .iter_mut()
-                                .zip(&xe[k * r..(k + 1) * r])
-                                .zip(scratch.iter())
-                            {
-                                *uv -= gain * s * x;
-                            }
-                        }
-                    }
-                }
-                (Role::Follower, _) => {
-                    // Σ_j l_ij ẑ_ij into ui (negated below).
-                    for e in range.clone() {
-                        let l = weights[e];
-                        let xe = &input.edges[e * d * r..(e + 1) * d * r];
-                        for (uv, x) in ui.iter_mut().zip(xe) {
-                            *uv += l * x;
-                        }
-                    }
-                    match *law {
-                        FollowerLaw::Static { gain } => {
-                            for uv in ui.iter_mut() {
-                                *uv *= -gain;
-                            }
-                        }
-                        FollowerLaw::Pi { alpha, eta } => {
-                            let integ = &mut integral[i * d * r..(i + 1) * d * r];
-                            for (uv, iv) in ui.iter_mut().zip(integ.iter_mut()) {
-                                *iv += *uv;
-                                *uv = -alpha * *uv - eta * *iv;
-                            }
-                        }
-                        FollowerLaw::VaryingVelocity => {
-                            // − (1/γ_i) (Σ_j l_ij ẑ_ij − Σ_j l_ij ż_j)
-                            for e in range.clone() {
-                                let l = weights[e];
-                                let j = edges[e].1;
-                                let uj = &input.u_prev[j * d * r..(j + 1) * d * r];
-                                for (uv, v) in ui.iter_mut().zip(uj) {
-                                    *uv -= l * v;
-                                }
-                            }
-                            let g = gamma[i];
-                            for uv in ui.iter_mut() {
-                                *uv = -*uv / g;
-                            }
+        ui.fill(0.0);
+        let (range, role) = self.agents[i].clone();
+        let edges = |e: usize| &input.edges[(e - first) * d * r..(e - first + 1) * d * r];
+        match (role, self.leaders) {
+            (Role::Leader, LeaderMode::Target) => {
+                if let Some(t) = input.next_target {
+                    for k in 0..d {
+                        let zk = &input.z[(i * d + k) * r..(i * d + k + 1) * r];
+                        for (uv, z) in ui[k * r..(k + 1) * r].iter_mut().zip(zk) {
+                            *uv = (t[i * d + k] - z) / self.dt;
                         }
                     }
                 }
             }
-            if input.faults.measurement_faults() {
-                for run in 0..r {
-                    if !input.faults.present(i, run) {
-                        for k in 0..d {
-                            ui[k * r + run] = 0.0;
+            (Role::Leader, LeaderMode::Distance { gain }) => {
+                for e in range {
+                    let Some(d2) = self.leader_d2[e] else {
+                        continue;
+                    };
+                    let xe = edges(e);
+                    // s = ‖ẑ‖² − d² per run.
+                    self.scratch.fill(-d2);
+                    for k in 0..d {
+                        for (s, x) in self.scratch.iter_mut().zip(&xe[k * r..(k + 1) * r]) {
+                            *s += x * x;
                         }
                     }
+                    for k in 0..d {
+                        for ((uv, x), s) in ui[k * r..(k + 1) * r]
+                            .iter_mut()
+                            .zip(&xe[k * r..(k + 1) * r])
+                            .zip(self.scratch.iter())
+                        {
+                            *uv -= gain * s * x;
+                        }
+                    }
+                }
+            }
+            (Role::Follower, _) => self.follower(i, range, &edges, input.u_prev, ui),
+        }
+        if input.faults.measurement_faults() {
+            for run in 0..r {
+                if !input.faults.present(i, run) {
+                    for k in 0..d {
+                        ui[k * r + run] = 0.0;
+                    }
+                }
+            }
+        }
+    }
+
+    /// A follower's law from its edges `range` (read through `edges`).
+    fn follower<'e>(
+        &mut self,
+        i: usize,
+        range: std::ops::Range<usize>,
+        edges: &dyn Fn(usize) -> &'e [f64],
+        u_prev: &[f64],
+        ui: &mut [f64],
+    ) {
+        let dr = self.dim * self.runs;
+        // Σ_j l_ij ẑ_ij into ui (negated below).
+        for e in range.clone() {
+            let l = self.weights[e];
+            for (uv, x) in ui.iter_mut().zip(edges(e)) {
+                *uv += l * x;
+            }
+        }
+        match self.law {
+            FollowerLaw::Static { gain } => {
+                for uv in ui.iter_mut() {
+                    *uv *= -gain;
+                }
+            }
+            FollowerLaw::Pi { alpha, eta } => {
+                let integ = &mut self.integral[i * dr..(i + 1) * dr];
+                for (uv, iv) in ui.iter_mut().zip(integ.iter_mut()) {
+                    *iv += *uv;
+                    *uv = -alpha * *uv - eta * *iv;
+                }
+            }
+            FollowerLaw::VaryingVelocity => {
+                // − (1/γ_i) (Σ_j l_ij ẑ_ij − Σ_j l_ij ż_j)
+                for e in range {
+                    let l = self.weights[e];
+                    let j = self.edges[e].1;
+                    let uj = &u_prev[j * dr..(j + 1) * dr];
+                    for (uv, v) in ui.iter_mut().zip(uj) {
+                        *uv -= l * v;
+                    }
+                }
+                let g = self.gamma[i];
+                for uv in ui.iter_mut() {
+                    *uv = -*uv / g;
                 }
             }
         }

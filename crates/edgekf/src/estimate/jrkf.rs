@@ -397,7 +397,8 @@ impl Jrkf {
         let d = self.dim;
         let mut failed = None;
         for (g, b) in self.blocks.iter_mut().enumerate() {
-            if all_lost || !b.frozen {
+            // An agent without edges (the others of one agent's model) has nothing to filter.
+            if b.n > 0 && (all_lost || !b.frozen) {
                 let ne = b.n / d.max(1);
                 self.lost[..ne].fill(all_lost);
                 if !b.covariance_step(&self.lost[..ne], &[], self.extra.as_ref()) {
@@ -411,6 +412,9 @@ impl Jrkf {
             return;
         }
         for (i, range) in self.agent_edges.iter().enumerate() {
+            if range.is_empty() {
+                continue;
+            }
             let b = &self.blocks[self.group[i]];
             let (row, n) = self.agent_rows[i];
             let span = row * r..(row + n) * r;
@@ -450,6 +454,9 @@ impl Jrkf {
         let p_fail = self.p_fail.unwrap_or(0.0);
         for (i, range) in self.agent_edges.iter().enumerate() {
             let ne = range.len();
+            if ne == 0 {
+                continue;
+            }
             for run in 0..r {
                 for (a, e) in range.clone().enumerate() {
                     self.seen[a] = s.faults.observed(e, run);

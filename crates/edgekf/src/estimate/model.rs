@@ -113,6 +113,14 @@ impl Model {
         local
     }
 
+    /// The same model where measurements and messages can go missing (an agent on a real
+    /// network): filters then take their per-run path, which reads the faults of every step.
+    #[must_use]
+    pub fn with_measurement_faults(mut self) -> Model {
+        self.measurement_faults = true;
+        self
+    }
+
     /// Which agents' edges it covers.
     pub fn scope(&self) -> Scope {
         self.scope

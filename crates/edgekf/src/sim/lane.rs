@@ -251,7 +251,7 @@ impl Lane {
 }
 
 /// Every metric at report `at.index` into `values`; the stop if one is non-finite.
-fn measure(
+pub(crate) fn measure(
     metrics: &[Box<dyn Metric>],
     values: &mut [Vec<f64>],
     meas: &Measure<'_>,

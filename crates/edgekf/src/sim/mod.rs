@@ -377,21 +377,26 @@ fn reduce_acov(sc: &Scenario, parts: &[Chunk], runs: usize, opt: Options) -> Vec
 }
 
 /// A chunk's results.
-struct Chunk {
-    range: Range<usize>,
-    lanes: Vec<LaneOut>,
+pub(crate) struct Chunk {
+    pub(crate) range: Range<usize>,
+    pub(crate) lanes: Vec<LaneOut>,
 }
 
 /// One estimator's results over a chunk of runs.
 pub(crate) struct LaneOut {
-    values: Vec<Vec<f64>>,
-    stop: Option<Stop>,
-    paths: Vec<f64>,
-    inputs: Vec<f64>,
-    acov: Vec<f64>,
+    pub(crate) values: Vec<Vec<f64>>,
+    pub(crate) stop: Option<Stop>,
+    pub(crate) paths: Vec<f64>,
+    pub(crate) inputs: Vec<f64>,
+    pub(crate) acov: Vec<f64>,
 }
 
-fn assemble(sc: &Scenario, range: Range<usize>, parts: Vec<Chunk>, opt: Options) -> Results {
+pub(crate) fn assemble(
+    sc: &Scenario,
+    range: Range<usize>,
+    parts: Vec<Chunk>,
+    opt: Options,
+) -> Results {
     let steps = sc.report_steps();
     let nr = steps.len();
     let runs = range.len();
