@@ -103,6 +103,32 @@ impl<'a> World<'a> {
         }
     }
 
+    /// The world of a live swarm, where agents can leave at any step ([`World::depart`]):
+    /// presence is tracked every step (run the agents with `messages_lost`, so that their
+    /// filters read it too).
+    pub fn live(sc: &'a Scenario) -> Self {
+        let mut w = Self::new(sc);
+        w.shared.faults.track_presence();
+        w.cx.faults_active = true;
+        w
+    }
+
+    /// Agent `i` has left the formation (its process ended): from the next step it is absent —
+    /// it does not move, and its edges and its neighbours' edges to it are not measured.
+    pub fn depart(&mut self, i: usize) {
+        self.shared.faults.depart(i);
+    }
+
+    /// Whether agent `i` is present at the current step.
+    pub fn present(&self, i: usize) -> bool {
+        self.shared.faults.out.present(i, 0)
+    }
+
+    /// Number of agents.
+    pub fn agents(&self) -> usize {
+        self.spans.len()
+    }
+
     /// The step the world is at (0 before the first).
     pub fn step(&self) -> usize {
         self.k

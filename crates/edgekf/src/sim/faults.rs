@@ -25,6 +25,8 @@ pub(crate) struct FaultStage {
     random: Vec<Vec<usize>>,
     /// Per edge: permanently lost.
     lost: Vec<bool>,
+    /// Per agent: left at a step no plan foresaw (a swarm's agent whose process ended).
+    departed: Vec<bool>,
     pub(crate) out: Faults,
 }
 
@@ -55,8 +57,20 @@ impl FaultStage {
             runs,
             random,
             lost,
+            departed: vec![false; agents],
             out,
         }
+    }
+
+    /// From now on agents can leave at any step ([`FaultStage::depart`]): presence and the
+    /// measurements' arrival are tracked every step.
+    pub(crate) fn track_presence(&mut self) {
+        *self.out.parts_mut().measurement_faults = true;
+    }
+
+    /// Agent `i` has left (from the next update on).
+    pub(crate) fn depart(&mut self, i: usize) {
+        self.departed[i] = true;
     }
 
     /// Updates the faults for step `k` from this step's uniforms (empty when not drawn).
@@ -74,6 +88,11 @@ impl FaultStage {
         for d in &self.plan.departures {
             if k >= d.from && k < d.until {
                 p.present[d.agent * runs..(d.agent + 1) * runs].fill(false);
+            }
+        }
+        for (a, gone) in self.departed.iter().enumerate() {
+            if *gone {
+                p.present[a * runs..(a + 1) * runs].fill(false);
             }
         }
         if let Some((_, at)) = self.plan.random_departures {

@@ -1,0 +1,557 @@
+//! One agent's process (`edgekf agent SCENARIO --id I`): an [`Agent`] between the world's
+//! session and the mesh of its neighbours.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::{Duration, Instant};
+
+use edgekf::agent::{Agent, Exchange, Output, Sensing};
+use edgekf::scenario::Scenario;
+use serde::{Deserialize, Serialize};
+use zenoh::qos::CongestionControl;
+use zenoh::{Session, Wait};
+
+use crate::events::{Chan, Event, Events};
+use crate::keys::Keys;
+use crate::stats::{Link, LinkStats};
+use crate::wire::{self, ScenarioId};
+use crate::{Endpoints, Mode, SwarmError};
+
+/// How an agent process runs.
+#[derive(Debug, Clone)]
+pub struct AgentOptions {
+    /// Its id.
+    pub id: usize,
+    /// Where the swarm meets.
+    pub endpoints: Endpoints,
+    /// How the world steps.
+    pub mode: Mode,
+    /// Neighbours' messages can be lost (a lossy network) or agents can leave: wait at most
+    /// `grace` for a neighbour's message, and run the filters' per-run path.
+    pub lossy: bool,
+    /// How long a lossy lockstep agent waits for a late neighbour.
+    pub grace: Duration,
+    /// The bound of every other wait (the world's start and steps, a neighbour in lockstep).
+    pub timeout: Duration,
+}
+
+/// What the world hears from an agent besides its outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Status {
+    /// It hears every neighbour on the mesh and is ready to start.
+    Ready,
+    /// Its measured links at the end (the links into it, and what it sent).
+    Links(Vec<(Link, LinkStats)>),
+}
+
+/// What the world tells every agent.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Control {
+    /// Start stepping.
+    Start,
+    /// The run is over (or failed: the reason).
+    Stop {
+        /// Why, when it failed.
+        error: Option<String>,
+    },
+}
+
+
+/// The messages of one channel from every neighbour, and the link statistics.
+struct Mailbox<T> {
+    channel: &'static str,
+    by_agent: BTreeMap<usize, BTreeMap<usize, T>>,
+    /// Per neighbour: the last step this agent went on with (later arrivals of it are late).
+    used: BTreeMap<usize, usize>,
+    stats: BTreeMap<usize, LinkStats>,
+}
+
+impl<T> Mailbox<T> {
+    fn new(channel: &'static str, from: &[usize]) -> Self {
+        Self {
+            channel,
+            by_agent: from.iter().map(|&j| (j, BTreeMap::new())).collect(),
+            used: BTreeMap::new(),
+            stats: from.iter().map(|&j| (j, LinkStats::default())).collect(),
+        }
+    }
+
+    fn put(&mut self, j: usize, k: usize, msg: T, sent_ns: u64, at: Instant) {
+        let Some(m) = self.by_agent.get_mut(&j) else {
+            return;
+        };
+        let late = self.used.get(&j).is_some_and(|&u| k <= u);
+        let latency_us = (wire::now_ns().saturating_sub(sent_ns)) as f64 / 1000.0
+            - at.elapsed().as_secs_f64() * 1e6;
+        if let Some(s) = self.stats.get_mut(&j) {
+            s.arrived(latency_us, late);
+            if late {
+                s.lost = s.lost.saturating_sub(1);
+            }
+        }
+        if !late {
+            m.insert(k, msg);
+        }
+    }
+
+    fn has(&self, j: usize, k: usize) -> bool {
+        self.by_agent.get(&j).is_some_and(|m| m.contains_key(&k))
+    }
+
+    fn get(&self, j: usize, k: usize) -> Option<&T> {
+        self.by_agent.get(&j)?.get(&k)
+    }
+
+    /// Going on at step `k` with what is here from `expected`: the missing ones are lost (until
+    /// they come late); older steps are dropped.
+    fn close(&mut self, k: usize, expected: &[usize]) {
+        for &j in expected {
+            if !self.has(j, k) {
+                if let Some(s) = self.stats.get_mut(&j) {
+                    s.lost += 1;
+                }
+            }
+            self.used.insert(j, k);
+        }
+        for m in self.by_agent.values_mut() {
+            m.retain(|&s, _| s > k);
+        }
+    }
+
+    fn links(&self, to: usize, sent: &BTreeMap<usize, u64>) -> Vec<(Link, LinkStats)> {
+        self.stats
+            .iter()
+            .map(|(&j, s)| {
+                let mut s = s.clone();
+                s.sent = sent.get(&j).copied().unwrap_or(s.received + s.lost);
+                (
+                    Link {
+                        from: Some(j),
+                        to: Some(to),
+                        channel: self.channel.into(),
+                    },
+                    s,
+                )
+            })
+            .collect()
+    }
+}
+
+/// An agent process's state between the two sessions.
+struct Node {
+    id: ScenarioId,
+    me: usize,
+    keys: Keys,
+    o: AgentOptions,
+    agent: Agent,
+    neighbours: Vec<usize>,
+    world: Session,
+    mesh: Session,
+    events: Events,
+    inputs: Mailbox<Output>,
+    exchanges: Mailbox<Exchange>,
+    sensing: BTreeMap<usize, (Sensing, u64, Instant)>,
+    sensing_stats: LinkStats,
+    departed: BTreeSet<usize>,
+    world_alive: bool,
+    stopped: Option<Option<String>>,
+    started: bool,
+    hellos: BTreeSet<usize>,
+    sent_inputs: u64,
+    sent_exchanges: u64,
+}
+
+/// Runs agent `o.id` of `sc` until the world stops the swarm.
+///
+/// # Errors
+/// [`SwarmError`]: an id out of range or a centralised estimator (named), no world at the
+/// endpoint, a world that never starts or stops sending, a neighbour that never answers in
+/// lockstep, a process of another scenario — each within `o.timeout`.
+pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
+    let live = o.lossy || matches!(o.mode, Mode::Realtime { .. });
+    let agent = Agent::new(sc, o.id, live)?;
+    let neighbours = agent.neighbours();
+    let listeners: Vec<usize> = sc
+        .framework()
+        .graph()
+        .edges()
+        .iter()
+        .filter(|&&(_, j)| j == o.id)
+        .map(|&(i, _)| i)
+        .collect();
+    let mut peers: Vec<usize> = neighbours.iter().chain(&listeners).copied().collect();
+    peers.sort_unstable();
+    peers.dedup();
+    let keys = Keys::new(&o.endpoints.swarm);
+    let world = o.endpoints.open_agent_world()?;
+    let mesh = o.endpoints.open_mesh(o.id, &peers)?;
+    let mut events = Events::new();
+    events.subscribe(&world, &keys.sensing(o.id), Chan::Sensing)?;
+    events.subscribe(&world, &keys.control(), Chan::Control)?;
+    events.liveliness(&world, &keys.alive_world())?;
+    events.liveliness(&world, &keys.alive_agents())?;
+    for &j in &neighbours {
+        events.subscribe(&mesh, &keys.input(j), Chan::Input)?;
+        events.subscribe(&mesh, &keys.exchange(j), Chan::Exchange)?;
+        events.subscribe(&mesh, &keys.hello(j), Chan::Hello)?;
+    }
+    let _token = world
+        .liveliness()
+        .declare_token(keys.alive_agent(o.id))
+        .wait()
+        .map_err(|e| SwarmError::Zenoh {
+            what: "declare this agent's liveliness".into(),
+            detail: e.to_string(),
+        })?;
+    let mut node = Node {
+        id: ScenarioId::of(sc),
+        me: o.id,
+        keys,
+        o: o.clone(),
+        agent,
+        inputs: Mailbox::new("input", &neighbours),
+        exchanges: Mailbox::new("exchange", &neighbours),
+        neighbours,
+        world,
+        mesh,
+        events,
+        sensing: BTreeMap::new(),
+        sensing_stats: LinkStats::default(),
+        departed: BTreeSet::new(),
+        world_alive: false,
+        stopped: None,
+        started: false,
+        hellos: BTreeSet::new(),
+        sent_inputs: 0,
+        sent_exchanges: 0,
+    };
+    node.meet()?;
+    let result = node.steps(sc.steps());
+    node.report_links();
+    result
+}
+
+impl Node {
+    fn put(&self, session_world: bool, key: &str, bytes: Vec<u8>) -> Result<(), SwarmError> {
+        let s = if session_world { &self.world } else { &self.mesh };
+        let cc = if session_world {
+            CongestionControl::Block
+        } else {
+            CongestionControl::Drop
+        };
+        s.put(key.to_string(), bytes)
+            .congestion_control(cc)
+            .wait()
+            .map_err(|e| SwarmError::Zenoh {
+                what: format!("publish on {key}"),
+                detail: e.to_string(),
+            })
+    }
+
+    /// Takes one event into the node's state.
+    fn take(&mut self, ev: Event) -> Result<(), SwarmError> {
+        let from = Keys::agent_of(&ev.key);
+        match ev.chan {
+            Chan::Alive(up) => {
+                if ev.key.ends_with("/alive/world") {
+                    self.world_alive = up;
+                    if !up && self.started && self.stopped.is_none() {
+                        self.stopped = Some(Some("the world left".into()));
+                    }
+                } else if let (Some(j), false) = (from, up) {
+                    self.departed.insert(j);
+                }
+            }
+            Chan::Hello => {
+                wire::decode::<usize>(&self.id, &ev.key, &ev.bytes)?;
+                if let Some(j) = from {
+                    self.hellos.insert(j);
+                }
+            }
+            Chan::Control => match wire::decode::<Control>(&self.id, &ev.key, &ev.bytes)?.0 {
+                Control::Start => self.started = true,
+                Control::Stop { error } => self.stopped = Some(error),
+            },
+            Chan::Sensing => {
+                let (s, sent): (Sensing, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
+                let lat = (wire::now_ns().saturating_sub(sent)) as f64 / 1000.0;
+                self.sensing_stats.arrived(lat, false);
+                self.sensing.insert(s.k, (s, sent, ev.at));
+            }
+            Chan::Input => {
+                let (m, sent): (Output, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
+                if let Some(j) = from {
+                    self.inputs.put(j, m.k, m, sent, ev.at);
+                }
+            }
+            Chan::Exchange => {
+                let (m, sent): (Exchange, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
+                if let Some(j) = from {
+                    self.exchanges.put(j, m.k, m, sent, ev.at);
+                }
+            }
+            Chan::Output | Chan::Status => {}
+        }
+        Ok(())
+    }
+
+    /// Waits for events until `done(self)` or `deadline`; `false` when the deadline passed.
+    fn wait_until(
+        &mut self,
+        deadline: Instant,
+        done: impl Fn(&Node) -> bool,
+    ) -> Result<bool, SwarmError> {
+        loop {
+            if done(self) {
+                return Ok(true);
+            }
+            if self.stopped.is_some() {
+                return Ok(false);
+            }
+            match self.events.next_before(deadline) {
+                Some(ev) => self.take(ev)?,
+                None => return Ok(done(self)),
+            }
+        }
+    }
+
+    /// Before the first step: hello to the neighbours until every one is heard and the world
+    /// is there, then ready to the world until it starts.
+    fn meet(&mut self) -> Result<(), SwarmError> {
+        let deadline = Instant::now() + self.o.timeout;
+        let mut next_hello = Instant::now();
+        while !self.started {
+            if let Some(e) = &self.stopped {
+                let why = e.clone().unwrap_or_else(|| "it stopped before the start".into());
+                return Err(SwarmError::Stopped(why));
+            }
+            if Instant::now() >= deadline {
+                return Err(self.meet_timeout());
+            }
+            if Instant::now() >= next_hello {
+                self.put(false, &self.keys.hello(self.me), wire::encode(&self.id, &self.me))?;
+                if self.world_alive && self.hears_everyone() {
+                    let status = self.keys.status(self.me);
+                    self.put(true, &status, wire::encode(&self.id, &Status::Ready))?;
+                }
+                next_hello = Instant::now() + Duration::from_millis(100);
+            }
+            let until = next_hello.min(deadline);
+            self.wait_until(until, |n| n.started)?;
+        }
+        Ok(())
+    }
+
+    fn hears_everyone(&self) -> bool {
+        self.neighbours
+            .iter()
+            .all(|j| self.hellos.contains(j) || self.departed.contains(j))
+    }
+
+    fn meet_timeout(&self) -> SwarmError {
+        let o = &self.o;
+        if !self.world_alive {
+            return SwarmError::timeout(
+                format!("agent {}: no world answered at {}", self.me, o.endpoints.world),
+                o.timeout,
+                "start `edgekf world` there, or give its endpoint with --world",
+            );
+        }
+        let missing: Vec<usize> = self
+            .neighbours
+            .iter()
+            .filter(|j| !self.hellos.contains(j))
+            .copied()
+            .collect();
+        if !missing.is_empty() {
+            return SwarmError::timeout(
+                format!("agent {}: neighbours {missing:?} were not heard on the mesh", self.me),
+                o.timeout,
+                "are their processes running, and is UDP open between the mesh endpoints?",
+            );
+        }
+        SwarmError::timeout(
+            format!("agent {}: the world did not start", self.me),
+            o.timeout,
+            "it waits for every agent to be ready",
+        )
+    }
+
+    /// Steps until the last or until the world stops the swarm.
+    fn steps(&mut self, steps: usize) -> Result<(), SwarmError> {
+        for k in 1..=steps {
+            let Some(sensing) = self.await_sensing(k)? else {
+                return self.stop_result();
+            };
+            if k > 1 {
+                let expected = self.expected(&sensing);
+                self.await_mail(k - 1, &expected, true)?;
+                self.inputs.close(k - 1, &expected);
+            }
+            let ex = {
+                let inputs = &self.inputs;
+                self.agent
+                    .begin(&sensing, |j| inputs.get(j, k.saturating_sub(1)))?
+            };
+            if let Some(x) = ex {
+                self.put(false, &self.keys.exchange(self.me), wire::encode(&self.id, &x))?;
+                self.sent_exchanges += 1;
+                let expected = self.expected(&sensing);
+                self.await_mail(k, &expected, false)?;
+                self.exchanges.close(k, &expected);
+            }
+            let out = {
+                let exchanges = &self.exchanges;
+                self.agent.finish(|j| exchanges.get(j, k))
+            };
+            let mut input = out.clone();
+            for l in &mut input.lanes {
+                l.report = None;
+            }
+            self.put(false, &self.keys.input(self.me), wire::encode(&self.id, &input))?;
+            self.sent_inputs += 1;
+            self.put(true, &self.keys.output(self.me), wire::encode(&self.id, &out))?;
+            if self.stopped.is_some() {
+                return self.stop_result();
+            }
+        }
+        // Wait for the world's stop (it collects the statistics meanwhile).
+        let deadline = Instant::now() + self.o.timeout;
+        self.wait_until(deadline, |n| n.stopped.is_some())?;
+        self.stop_result()
+    }
+
+    fn stop_result(&self) -> Result<(), SwarmError> {
+        match &self.stopped {
+            Some(Some(e)) => Err(SwarmError::Stopped(e.clone())),
+            _ => Ok(()),
+        }
+    }
+
+    /// The neighbours whose messages this step should bring: present, and not departed.
+    fn expected(&self, s: &Sensing) -> Vec<usize> {
+        self.neighbours
+            .iter()
+            .filter(|&&j| s.present.get(j).copied().unwrap_or(false) && !self.departed.contains(&j))
+            .copied()
+            .collect()
+    }
+
+    fn await_sensing(&mut self, k: usize) -> Result<Option<Sensing>, SwarmError> {
+        let deadline = Instant::now() + self.o.timeout;
+        let got = self.wait_until(deadline, |n| n.sensing.contains_key(&k))?;
+        if !got {
+            if self.stopped.is_some() {
+                return Ok(None);
+            }
+            return Err(SwarmError::timeout(
+                format!("agent {}: the world sent no step {k}", self.me),
+                self.o.timeout,
+                "did the world stop or lose its connection?",
+            ));
+        }
+        self.sensing.retain(|&s, _| s >= k);
+        Ok(self.sensing.remove(&k).map(|(s, _, _)| s))
+    }
+
+    /// Waits for step `k`'s messages (inputs or exchanges) of the `expected` neighbours, as the
+    /// mode allows.
+    fn await_mail(&mut self, k: usize, expected: &[usize], inputs: bool) -> Result<(), SwarmError> {
+        let have = |n: &Node| {
+            let departed = |j: &usize| n.departed.contains(j);
+            expected.iter().all(|&j| {
+                departed(&j)
+                    || if inputs {
+                        n.inputs.has(j, k)
+                    } else {
+                        n.exchanges.has(j, k)
+                    }
+            })
+        };
+        let (wait, bounded) = match (self.o.mode, self.o.lossy) {
+            (Mode::Lockstep, false) => (self.o.timeout, true),
+            (Mode::Lockstep, true) => (self.o.grace, false),
+            // Real time: inputs of k − 1 were due before this step's sensing; the exchange
+            // gets half a period.
+            (Mode::Realtime { .. }, _) if inputs => (Duration::ZERO, false),
+            (Mode::Realtime { period }, _) => (period / 2, false),
+        };
+        let got = self.wait_until(Instant::now() + wait, have)?;
+        if !got && bounded && self.stopped.is_none() {
+            let missing: Vec<usize> = expected
+                .iter()
+                .filter(|&&j| {
+                    !(self.departed.contains(&j)
+                        || if inputs {
+                            self.inputs.has(j, k)
+                        } else {
+                            self.exchanges.has(j, k)
+                        })
+                })
+                .copied()
+                .collect();
+            return Err(SwarmError::timeout(
+                format!(
+                    "agent {}: neighbours {missing:?} sent no {} of step {k}",
+                    self.me,
+                    if inputs { "input" } else { "exchange" }
+                ),
+                self.o.timeout,
+                "a neighbour that never answers ends a lockstep swarm; run with --lossy to go on without it",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Sends the links into this agent (and what it sent) to the world.
+    fn report_links(&mut self) {
+        // Late arrivals still in the queue count as late.
+        let deadline = Instant::now() + Duration::from_millis(50);
+        while let Some(ev) = self.events.next_before(deadline) {
+            if self.take(ev).is_err() {
+                break;
+            }
+        }
+        let sent_in: BTreeMap<usize, u64> = BTreeMap::new();
+        let mut links = self.inputs.links(self.me, &sent_in);
+        if self.sent_exchanges > 0 || self.exchanges.stats.values().any(|s| s.received > 0) {
+            links.extend(self.exchanges.links(self.me, &sent_in));
+        }
+        let mut sensing = self.sensing_stats.clone();
+        sensing.sent = sensing.received;
+        links.push((
+            Link {
+                from: None,
+                to: Some(self.me),
+                channel: "sensing".into(),
+            },
+            sensing,
+        ));
+        // What this agent published towards each of its listeners.
+        links.push((
+            Link {
+                from: Some(self.me),
+                to: None,
+                channel: "sent_input".into(),
+            },
+            LinkStats {
+                sent: self.sent_inputs,
+                ..LinkStats::default()
+            },
+        ));
+        if self.sent_exchanges > 0 {
+            links.push((
+                Link {
+                    from: Some(self.me),
+                    to: None,
+                    channel: "sent_exchange".into(),
+                },
+                LinkStats {
+                    sent: self.sent_exchanges,
+                    ..LinkStats::default()
+                },
+            ));
+        }
+        let key = self.keys.status(self.me);
+        let _ = self.put(true, &key, wire::encode(&self.id, &Status::Links(links)));
+    }
+}

@@ -1,0 +1,358 @@
+//! The world's process (`edgekf world SCENARIO`): an [`edgekf::agent::World`] that sends every
+//! agent its sensing, waits for (lockstep) or times (real time) their outputs, moves the
+//! formation, notices departures through Zenoh liveliness, and measures the links.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use edgekf::agent::{Output, World};
+use edgekf::scenario::Scenario;
+use edgekf::sim::Results;
+use zenoh::qos::CongestionControl;
+use zenoh::{Session, Wait};
+
+use crate::agent_node::{Control, Status};
+use crate::events::{Chan, Event, Events};
+use crate::keys::Keys;
+use crate::stats::{Link, LinkStats, NetworkStats};
+use crate::wire::{self, ScenarioId};
+use crate::{Endpoints, Mode, SwarmError};
+
+/// How the world process runs.
+#[derive(Debug, Clone)]
+pub struct WorldOptions {
+    /// Where the swarm meets.
+    pub endpoints: Endpoints,
+    /// How it steps.
+    pub mode: Mode,
+    /// Agents may leave or messages be lost (a live swarm): presence is tracked every step.
+    pub live: bool,
+    /// The bound of every wait (the agents' start, an agent's output in lockstep).
+    pub timeout: Duration,
+    /// A shell command run once every agent is ready, before the first step (e.g. an nftables
+    /// rule that makes the mesh lossy).
+    pub after_ready: Option<String>,
+}
+
+/// How an agent left.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Departure {
+    /// The agent.
+    pub agent: usize,
+    /// The first step it was absent.
+    pub step: usize,
+    /// How: what the world saw.
+    pub how: String,
+}
+
+/// What a swarm produced.
+#[derive(Debug)]
+pub struct WorldOutcome {
+    /// The results, as `edgekf run --runs 1` gives them.
+    pub results: Results,
+    /// Every link's statistics.
+    pub network: NetworkStats,
+    /// The agents that left, in order.
+    pub departures: Vec<Departure>,
+    /// Steps per second of wall time, from the start to the last step.
+    pub steps_per_s: f64,
+    /// Outputs expected, and those that missed their step's deadline (real time).
+    pub outputs_expected: u64,
+    /// See [`WorldOutcome::outputs_expected`].
+    pub deadline_misses: u64,
+}
+
+struct Node<'a> {
+    id: ScenarioId,
+    keys: Keys,
+    o: &'a WorldOptions,
+    session: Session,
+    events: Events,
+    n: usize,
+    alive: BTreeSet<usize>,
+    ever_alive: BTreeSet<usize>,
+    ready: BTreeSet<usize>,
+    gone: BTreeSet<usize>,
+    outputs: BTreeMap<usize, BTreeMap<usize, Output>>,
+    out_stats: Vec<LinkStats>,
+    /// Per agent: the last step the world went on with.
+    used: Vec<usize>,
+    links: Vec<(Link, LinkStats)>,
+    reported: BTreeSet<usize>,
+}
+
+/// Runs the world of `sc` until its last step; `on_step(k)` after each.
+///
+/// # Errors
+/// [`SwarmError`]: agents that never connect or never get ready (named), an agent that stops
+/// answering in lockstep, a process of another scenario, a failing `after_ready` command.
+pub fn run_world(
+    sc: &Scenario,
+    o: &WorldOptions,
+    on_step: &mut dyn FnMut(usize),
+) -> Result<WorldOutcome, SwarmError> {
+    let keys = Keys::new(&o.endpoints.swarm);
+    let session = o.endpoints.open_world()?;
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_world())
+        .wait()
+        .map_err(|e| SwarmError::Zenoh {
+            what: "declare the world's liveliness".into(),
+            detail: e.to_string(),
+        })?;
+    let mut events = Events::new();
+    events.subscribe(&session, &keys.outputs(), Chan::Output)?;
+    events.subscribe(&session, &keys.statuses(), Chan::Status)?;
+    events.liveliness(&session, &keys.alive_agents())?;
+    let n = sc.framework().agents();
+    let mut node = Node {
+        id: ScenarioId::of(sc),
+        keys,
+        o,
+        session,
+        events,
+        n,
+        alive: BTreeSet::new(),
+        ever_alive: BTreeSet::new(),
+        ready: BTreeSet::new(),
+        gone: BTreeSet::new(),
+        outputs: BTreeMap::new(),
+        out_stats: vec![LinkStats::default(); n],
+        used: vec![0; n],
+        links: Vec::new(),
+        reported: BTreeSet::new(),
+    };
+    let run = node.meet().and_then(|()| node.steps(sc, on_step));
+    let error = run.as_ref().err().map(ToString::to_string);
+    let _ = node.put(&node.keys.control(), &Control::Stop { error });
+    let (results, departures, steps_per_s, expected, misses) = run?;
+    node.collect_links();
+    Ok(WorldOutcome {
+        results,
+        network: node.network(),
+        departures,
+        steps_per_s,
+        outputs_expected: expected,
+        deadline_misses: misses,
+    })
+}
+
+type StepsOutcome = (Results, Vec<Departure>, f64, u64, u64);
+
+impl Node<'_> {
+    fn put<T: serde::Serialize>(&self, key: &str, body: &T) -> Result<(), SwarmError> {
+        self.session
+            .put(key.to_string(), wire::encode(&self.id, body))
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(|e| SwarmError::Zenoh {
+                what: format!("publish on {key}"),
+                detail: e.to_string(),
+            })
+    }
+
+    fn take(&mut self, ev: Event) -> Result<(), SwarmError> {
+        let Some(i) = Keys::agent_of(&ev.key).filter(|&i| i < self.n) else {
+            return Ok(());
+        };
+        match ev.chan {
+            Chan::Alive(true) => {
+                self.alive.insert(i);
+                self.ever_alive.insert(i);
+            }
+            Chan::Alive(false) => {
+                self.alive.remove(&i);
+            }
+            Chan::Status => match wire::decode::<Status>(&self.id, &ev.key, &ev.bytes)?.0 {
+                Status::Ready => {
+                    self.ready.insert(i);
+                }
+                Status::Links(l) => {
+                    self.links.extend(l);
+                    self.reported.insert(i);
+                }
+            },
+            Chan::Output => {
+                let (out, sent): (Output, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
+                let late = out.k <= self.used[i];
+                let lat = wire::now_ns().saturating_sub(sent) as f64 / 1000.0
+                    - ev.at.elapsed().as_secs_f64() * 1e6;
+                self.out_stats[i].arrived(lat, late);
+                if late {
+                    self.out_stats[i].lost = self.out_stats[i].lost.saturating_sub(1);
+                } else {
+                    self.outputs.entry(out.k).or_default().insert(i, out);
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn wait_until(&mut self, deadline: Instant, done: impl Fn(&Self) -> bool) -> Result<bool, SwarmError> {
+        loop {
+            if done(self) {
+                return Ok(true);
+            }
+            match self.events.next_before(deadline) {
+                Some(ev) => self.take(ev)?,
+                None => return Ok(done(self)),
+            }
+        }
+    }
+
+    /// Waits until every agent is ready, runs the `after_ready` command, and starts.
+    fn meet(&mut self) -> Result<(), SwarmError> {
+        let n = self.n;
+        let deadline = Instant::now() + self.o.timeout;
+        if !self.wait_until(deadline, |s| s.ready.len() == n)? {
+            let unseen: Vec<usize> = (0..n).filter(|i| !self.ever_alive.contains(i)).collect();
+            let unready: Vec<usize> = (0..n)
+                .filter(|i| self.ever_alive.contains(i) && !self.ready.contains(i))
+                .collect();
+            let what = if unseen.len() == n {
+                format!("world: no agent connected to {}", self.o.endpoints.world)
+            } else if !unseen.is_empty() {
+                format!("world: agents {unseen:?} never connected")
+            } else {
+                format!("world: agents {unready:?} connected but did not get ready (they wait to hear every neighbour on the mesh)")
+            };
+            return Err(SwarmError::timeout(
+                what,
+                self.o.timeout,
+                "start one `edgekf agent --id I` per agent, pointed at this world",
+            ));
+        }
+        if let Some(cmd) = &self.o.after_ready {
+            let status = Command::new("sh")
+                .arg("-c")
+                .arg(cmd)
+                .status()
+                .map_err(|e| SwarmError::Process(format!("cannot run --after-ready `{cmd}`: {e}")))?;
+            if !status.success() {
+                return Err(SwarmError::Process(format!(
+                    "--after-ready `{cmd}` failed ({status})"
+                )));
+            }
+        }
+        self.put(&self.keys.control(), &Control::Start)
+    }
+
+    fn steps(&mut self, sc: &Scenario, on_step: &mut dyn FnMut(usize)) -> Result<StepsOutcome, SwarmError> {
+        let mut world = if self.o.live {
+            World::live(sc)
+        } else {
+            World::new(sc)
+        };
+        let start = Instant::now();
+        let mut departures = Vec::new();
+        let (mut expected_total, mut misses) = (0u64, 0u64);
+        for k in 1..=sc.steps() {
+            for i in 0..self.n {
+                if world.present(i) && !self.alive.contains(&i) && self.ever_alive.contains(&i) {
+                    // Its process ended during the last step: absent from this one on.
+                    if !self.gone.contains(&i) && self.o.live {
+                        self.gone.insert(i);
+                        world.depart(i);
+                        departures.push(Departure {
+                            agent: i,
+                            step: k,
+                            how: "its process ended: its Zenoh liveliness token went".into(),
+                        });
+                    }
+                }
+            }
+            let sensing = world.sense();
+            let expected: Vec<usize> = (0..self.n)
+                .filter(|&i| world.present(i) && !self.gone.contains(&i))
+                .collect();
+            for &i in &expected {
+                self.put(&self.keys.sensing(i), &sensing[i])?;
+            }
+            let deadline = match self.o.mode {
+                Mode::Lockstep => Instant::now() + self.o.timeout,
+                Mode::Realtime { period } => start + period * (k as u32),
+            };
+            let lockstep = self.o.mode == Mode::Lockstep;
+            let got = self.wait_until(deadline, |s| {
+                expected.iter().all(|&i| {
+                    s.outputs.get(&k).is_some_and(|m| m.contains_key(&i))
+                        || (s.o.live && !s.alive.contains(&i))
+                })
+            })?;
+            if !got && lockstep {
+                let missing: Vec<usize> = expected
+                    .iter()
+                    .filter(|&&i| !self.outputs.get(&k).is_some_and(|m| m.contains_key(&i)))
+                    .copied()
+                    .collect();
+                return Err(SwarmError::timeout(
+                    format!("world: agents {missing:?} sent no output for step {k}"),
+                    self.o.timeout,
+                    "an agent that stops answering ends a lockstep swarm unless it is --live",
+                ));
+            }
+            let outs = self.outputs.remove(&k).unwrap_or_default();
+            expected_total += expected.len() as u64;
+            for &i in &expected {
+                self.used[i] = k;
+                if !outs.contains_key(&i) {
+                    misses += 1;
+                    self.out_stats[i].lost += 1;
+                }
+            }
+            self.outputs.retain(|&s, _| s > k);
+            let refs: Vec<Option<&Output>> = (0..self.n).map(|i| outs.get(&i)).collect();
+            world.act(&refs);
+            on_step(k);
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        let rate = sc.steps() as f64 / elapsed.max(1e-9);
+        Ok((world.results(), departures, rate, expected_total, misses))
+    }
+
+    /// After the stop: every agent still there reports its links (within 2 s).
+    fn collect_links(&mut self) {
+        let deadline = Instant::now() + Duration::from_secs(2);
+        let _ = self.wait_until(deadline, |s| s.alive.iter().all(|i| s.reported.contains(i)));
+    }
+
+    fn network(&self) -> NetworkStats {
+        // What each agent sent on the mesh, for the links out of it.
+        let mut sent: BTreeMap<(usize, String), u64> = BTreeMap::new();
+        for (l, s) in &self.links {
+            if let (Some(j), None, Some(ch)) = (l.from, l.to, l.channel.strip_prefix("sent_")) {
+                sent.insert((j, ch.to_string()), s.sent);
+            }
+        }
+        let mut links: Vec<(Link, LinkStats)> = self
+            .links
+            .iter()
+            .filter(|(l, _)| !l.channel.starts_with("sent_"))
+            .map(|(l, s)| {
+                let mut s = s.clone();
+                if let Some(j) = l.from {
+                    if let Some(&n) = sent.get(&(j, l.channel.clone())) {
+                        s.sent = n;
+                    }
+                }
+                (l.clone(), s)
+            })
+            .collect();
+        for (i, s) in self.out_stats.iter().enumerate() {
+            let mut s = s.clone();
+            s.sent = s.received + s.lost;
+            links.push((
+                Link {
+                    from: Some(i),
+                    to: None,
+                    channel: "output".into(),
+                },
+                s,
+            ));
+        }
+        NetworkStats { links }
+    }
+}
