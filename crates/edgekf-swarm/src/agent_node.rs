@@ -25,9 +25,12 @@ pub struct AgentOptions {
     pub endpoints: Endpoints,
     /// How the world steps.
     pub mode: Mode,
-    /// Neighbours' messages can be lost (a lossy network) or agents can leave: wait at most
-    /// `grace` for a neighbour's message, and run the filters' per-run path.
+    /// Neighbours' messages can be lost (a lossy network): wait at most `grace` for a
+    /// neighbour's message (implies `live`).
     pub lossy: bool,
+    /// Agents can leave or messages be lost: the filters take their per-run path, which reads
+    /// the faults of every step (without it they run exactly as the engine's).
+    pub live: bool,
     /// How long a lossy lockstep agent waits for a late neighbour.
     pub grace: Duration,
     /// The bound of every other wait (the world's start and steps, a neighbour in lockstep).
@@ -167,7 +170,7 @@ struct Node {
 /// endpoint, a world that never starts or stops sending, a neighbour that never answers in
 /// lockstep, a process of another scenario — each within `o.timeout`.
 pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
-    let live = o.lossy || matches!(o.mode, Mode::Realtime { .. });
+    let live = o.live || o.lossy || matches!(o.mode, Mode::Realtime { .. });
     let agent = Agent::new(sc, o.id, live)?;
     let neighbours = agent.neighbours();
     let listeners: Vec<usize> = sc

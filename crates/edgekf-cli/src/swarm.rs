@@ -1,0 +1,608 @@
+//! `edgekf agent`, `edgekf world` and `edgekf swarm` (feature `swarm`): the agents as processes
+//! over Zenoh (crate `edgekf-swarm`). `agent` and `world` are one process each and run across
+//! machines with the endpoints given as flags (or a Zenoh configuration file); `swarm` starts
+//! the world and one process per agent on this machine, kills agents on request
+//! (`--kill AGENT@SECONDS`, SIGKILL), relays the first error, and leaves `--out` complete or
+//! absent.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::{BufRead, BufReader, Write as _};
+use std::net::{TcpListener, UdpSocket};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use edgekf::scenario::Scenario;
+use edgekf_swarm::agent_node::{run_agent, AgentOptions};
+use edgekf_swarm::world_node::{run_world, WorldOptions, WorldOutcome};
+use edgekf_swarm::{Endpoints, Mode};
+
+use crate::{interrupt, Overrides};
+
+/// How the world steps.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModeArg {
+    /// The world waits for every present agent at every step; with no loss and no departure
+    /// the outputs equal `edgekf run --runs 1`.
+    Lockstep,
+    /// A fixed clock of `--period-ms`; an output that misses its step's deadline is late.
+    Realtime,
+}
+
+/// Where the processes meet and how they wait (the same for every process of a swarm).
+#[derive(Args, Debug, Clone)]
+pub struct NetArgs {
+    /// The swarm's name: the first part of every Zenoh key (several swarms can share a
+    /// network).
+    #[arg(long, default_value = "edgekf")]
+    pub swarm: String,
+    /// The world's Zenoh endpoint (TCP): the world listens there, every agent connects.
+    #[arg(long, default_value = "tcp/127.0.0.1:7447")]
+    pub world: String,
+    /// Agent i listens on UDP port MESH_BASE_PORT + i for its neighbours (the mesh).
+    #[arg(long, default_value_t = 17500)]
+    pub mesh_base_port: u16,
+    /// The hosts of the agents' mesh endpoints: one for all, or one per agent (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "127.0.0.1")]
+    pub mesh_hosts: Vec<String>,
+    /// A Zenoh configuration file (JSON5) the sessions start from (the flags above override
+    /// its endpoints, mode and scouting).
+    #[arg(long)]
+    pub zenoh_config: Option<PathBuf>,
+    /// Timing mode.
+    #[arg(long, value_enum, default_value = "lockstep")]
+    pub mode: ModeArg,
+    /// The period of a step in real time, in ms.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub period_ms: u64,
+    /// The mesh may lose messages: a lockstep agent waits at most --grace-ms for a neighbour's
+    /// message, then treats it as lost (its filters fall back on their comm models).
+    #[arg(long)]
+    pub lossy: bool,
+    /// See --lossy.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(0..=60_000))]
+    pub grace_ms: u64,
+    /// Agents may leave (a killed or crashed process): presence is tracked every step and the
+    /// filters read it (implied by --lossy, --mode realtime and `swarm --kill`).
+    #[arg(long)]
+    pub live: bool,
+    /// The bound of every wait, in seconds: a world that never starts, an agent or neighbour
+    /// that never answers, an endpoint nobody listens on.
+    #[arg(long, default_value_t = 20.0, value_parser = seconds)]
+    pub timeout_s: f64,
+}
+
+fn seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 86_400.0 => Ok(v),
+        _ => Err(format!("must be a number of seconds in (0, 86400], got `{s}`")),
+    }
+}
+
+impl NetArgs {
+    fn endpoints(&self) -> Endpoints {
+        Endpoints {
+            swarm: self.swarm.clone(),
+            world: self.world.clone(),
+            mesh_base_port: self.mesh_base_port,
+            mesh_hosts: self.mesh_hosts.clone(),
+            zenoh_config: self.zenoh_config.clone(),
+        }
+    }
+
+    fn mode(&self) -> Mode {
+        match self.mode {
+            ModeArg::Lockstep => Mode::Lockstep,
+            ModeArg::Realtime => Mode::Realtime {
+                period: Duration::from_millis(self.period_ms),
+            },
+        }
+    }
+
+    fn live(&self) -> bool {
+        self.live || self.lossy || self.mode == ModeArg::Realtime
+    }
+
+    /// The flags that reproduce these settings in a child process.
+    fn to_args(&self) -> Vec<String> {
+        let mut a = vec![
+            "--swarm".into(),
+            self.swarm.clone(),
+            "--world".into(),
+            self.world.clone(),
+            "--mesh-base-port".into(),
+            self.mesh_base_port.to_string(),
+            "--mesh-hosts".into(),
+            self.mesh_hosts.join(","),
+            "--mode".into(),
+            format!("{:?}", self.mode).to_lowercase(),
+            "--period-ms".into(),
+            self.period_ms.to_string(),
+            "--grace-ms".into(),
+            self.grace_ms.to_string(),
+            "--timeout-s".into(),
+            self.timeout_s.to_string(),
+        ];
+        if let Some(c) = &self.zenoh_config {
+            a.extend(["--zenoh-config".into(), c.display().to_string()]);
+        }
+        for (on, flag) in [(self.lossy, "--lossy"), (self.live, "--live")] {
+            if on {
+                a.push(flag.into());
+            }
+        }
+        a
+    }
+}
+
+/// `edgekf agent`.
+#[derive(Args, Debug)]
+pub struct AgentArgs {
+    /// Scenario file (TOML or a resolved scenario.json): the same as the world's.
+    pub scenario: PathBuf,
+    /// This agent's id (0-based).
+    #[arg(long)]
+    pub id: usize,
+    #[command(flatten)]
+    pub net: NetArgs,
+    #[command(flatten)]
+    pub over: Overrides,
+}
+
+/// `edgekf world`.
+#[derive(Args, Debug)]
+pub struct WorldArgs {
+    /// Scenario file (TOML or a resolved scenario.json): the same as the agents'.
+    pub scenario: PathBuf,
+    /// Output directory: the files of `edgekf run`, and network.csv.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Empty the output directory first when it holds files of another study.
+    #[arg(long)]
+    pub force: bool,
+    /// A shell command run once every agent is ready, before the first step (e.g. an nftables
+    /// rule that makes the mesh lossy: see the README's recipe).
+    #[arg(long)]
+    pub after_ready: Option<String>,
+    /// Print `progress K` on stdout after every step (for `edgekf swarm`).
+    #[arg(long, hide = true)]
+    pub progress_lines: bool,
+    #[command(flatten)]
+    pub net: NetArgs,
+    #[command(flatten)]
+    pub over: Overrides,
+}
+
+/// `edgekf swarm`.
+#[derive(Args, Debug)]
+pub struct SwarmArgs {
+    /// Scenario file (TOML or a resolved scenario.json).
+    pub scenario: PathBuf,
+    /// Output directory: the files of `edgekf run --runs 1`, and network.csv.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Empty the output directory first when it holds files of another study.
+    #[arg(long)]
+    pub force: bool,
+    /// SIGKILL agent AGENT's process at simulated time SECONDS (repeatable), e.g. `--kill 3@5`.
+    #[arg(long, value_parser = parse_kill)]
+    pub kill: Vec<(usize, f64)>,
+    /// A shell command run once every agent is ready, before the first step.
+    #[arg(long)]
+    pub after_ready: Option<String>,
+    /// Also write report.html.
+    #[arg(long)]
+    pub report: bool,
+    /// Timing mode.
+    #[arg(long, value_enum, default_value = "lockstep")]
+    pub mode: ModeArg,
+    /// The period of a step in real time, in ms.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub period_ms: u64,
+    /// The mesh may lose messages (see `edgekf agent --help`).
+    #[arg(long)]
+    pub lossy: bool,
+    /// How long a lossy lockstep agent waits for a neighbour's message, in ms.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(0..=60_000))]
+    pub grace_ms: u64,
+    /// The bound of every wait, in seconds.
+    #[arg(long, default_value_t = 20.0, value_parser = seconds)]
+    pub timeout_s: f64,
+    /// A Zenoh configuration file (JSON5) for every process.
+    #[arg(long)]
+    pub zenoh_config: Option<PathBuf>,
+    #[command(flatten)]
+    pub over: Overrides,
+}
+
+fn parse_kill(s: &str) -> Result<(usize, f64), String> {
+    let bad = || format!("expected AGENT@SECONDS (e.g. 3@5.0), got `{s}`");
+    let (a, t) = s.split_once('@').ok_or_else(bad)?;
+    let a = a.trim().parse::<usize>().map_err(|_| bad())?;
+    let t = t.trim().parse::<f64>().map_err(|_| bad())?;
+    if !(t.is_finite() && t >= 0.0) {
+        return Err(format!("the time of `--kill {s}` must be ≥ 0 s"));
+    }
+    Ok((a, t))
+}
+
+/// The scenario of a swarm: one run (run 0 of `edgekf run`), the overrides applied.
+fn scenario(path: &Path, over: &Overrides) -> Result<Scenario> {
+    if over.runs.is_some_and(|r| r != 1) {
+        bail!("flag `--runs`: a swarm is one run (run 0 of `edgekf run`); run several swarms with different --seed for more");
+    }
+    let text = fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut over = over.clone();
+    over.runs = Some(1);
+    crate::load(&path.display().to_string(), &text, path.parent(), &over)
+}
+
+/// Runs `edgekf agent`.
+///
+/// # Errors
+/// As [`run_agent`], named.
+pub fn agent(args: &AgentArgs) -> Result<ExitCode> {
+    let sc = scenario(&args.scenario, &args.over)?;
+    let o = AgentOptions {
+        id: args.id,
+        endpoints: args.net.endpoints(),
+        mode: args.net.mode(),
+        lossy: args.net.lossy,
+        live: args.net.live(),
+        grace: Duration::from_millis(args.net.grace_ms),
+        timeout: Duration::from_secs_f64(args.net.timeout_s),
+    };
+    run_agent(&sc, &o)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `edgekf world`: the world, then its outputs.
+///
+/// # Errors
+/// As [`run_world`], and the outputs' writing.
+pub fn world(args: &WorldArgs) -> Result<ExitCode> {
+    let sc = scenario(&args.scenario, &args.over)?;
+    for def in sc.estimators() {
+        edgekf::agent::Agent::new(&sc, 0, false)
+            .with_context(|| format!("{}: estimator `{}`", args.scenario.display(), def.label()))?;
+        break;
+    }
+    let id = edgekf_io::outdir::StudyId::new("swarm", sc.name());
+    let prep = edgekf_io::outdir::prepare(&args.out, &id, args.force, crate::Hint::CLI)?;
+    let o = WorldOptions {
+        endpoints: args.net.endpoints(),
+        mode: args.net.mode(),
+        live: args.net.live(),
+        timeout: Duration::from_secs_f64(args.net.timeout_s),
+        after_ready: args.after_ready.clone(),
+    };
+    let lines = args.progress_lines;
+    let mut on_step = |k: usize| {
+        if lines {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "progress {k}");
+            let _ = out.flush();
+        }
+    };
+    let outcome = run_world(&sc, &o, &mut on_step)?;
+    let mut st = interrupt::stage(&args.out)?;
+    crate::stage_outputs(&mut st, &sc, &outcome.results, None, &Default::default())?;
+    st.write("status.csv", status_csv(&outcome).as_bytes())?;
+    st.write("network.csv", outcome.network.csv().as_bytes())?;
+    crate::commit(st, prep, &id)?;
+    eprintln!("{}", summary_line(&sc, &outcome));
+    eprintln!("wrote {}", args.out.display());
+    Ok(crate::report(&sc, &outcome.results, &args.over))
+}
+
+/// `status.csv` with a row per departed agent.
+fn status_csv(o: &WorldOutcome) -> String {
+    let mut s = edgekf_io::status_csv(&o.results);
+    for d in &o.departures {
+        s.push_str(&format!(
+            "agent:{},departed,{},{},0,\"{}\"\n",
+            d.agent,
+            d.step,
+            d.step as f64 * o.results.dt,
+            d.how.replace('"', "'")
+        ));
+    }
+    s
+}
+
+fn summary_line(sc: &Scenario, o: &WorldOutcome) -> String {
+    let inputs = o.network.total("input");
+    let lost = if inputs.sent > 0 {
+        format!(
+            "{:.2} % of {} mesh messages lost ({} late)",
+            100.0 * inputs.lost as f64 / inputs.sent as f64,
+            inputs.sent,
+            inputs.late
+        )
+    } else {
+        "no mesh messages".into()
+    };
+    format!(
+        "swarm {}: {} steps at {:.0} steps/s; {} of {} outputs missed their deadline; {lost}; input latency p50 {:.3} ms, p99 {:.3} ms",
+        sc.name(),
+        sc.steps(),
+        o.steps_per_s,
+        o.deadline_misses,
+        o.outputs_expected,
+        inputs.quantile_ms(0.5),
+        inputs.quantile_ms(0.99),
+    )
+}
+
+/// A free TCP port on loopback.
+fn free_tcp_port() -> Result<u16> {
+    let l = TcpListener::bind("127.0.0.1:0").context("no free TCP port on 127.0.0.1")?;
+    Ok(l.local_addr()?.port())
+}
+
+/// A base port with `n` consecutive free UDP ports on loopback.
+fn free_udp_base(n: usize) -> Result<u16> {
+    let seed = std::process::id() as usize;
+    for attempt in 0..200 {
+        let base = 20_000 + (seed * 7919 + attempt * 104_729) % (40_000 - n.min(20_000));
+        let ok = (0..n).all(|i| UdpSocket::bind(("127.0.0.1", (base + i) as u16)).is_ok());
+        if ok {
+            return Ok(base as u16);
+        }
+    }
+    bail!("no {n} consecutive free UDP ports on 127.0.0.1")
+}
+
+/// A child process of the swarm, killed with the parent (PR_SET_PDEATHSIG) and on Ctrl-C.
+fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child> {
+    let err = fs::File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
+    let mut cmd = Command::new(exe);
+    cmd.args(args).stdin(Stdio::null()).stdout(stdout).stderr(err);
+    // SAFETY: prctl(2) in the child before exec, async-signal-safe.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+    let child = cmd
+        .spawn()
+        .with_context(|| format!("cannot start {}", exe.display()))?;
+    interrupt::child(child.id());
+    Ok(child)
+}
+
+/// The last lines of a log that say something.
+fn tail(log: &Path) -> String {
+    let text = fs::read_to_string(log).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    lines[lines.len().saturating_sub(3)..].join("\n  ")
+}
+
+/// Peak resident memory of a process, in MB (Linux `/proc`).
+fn rss_mb(pid: u32) -> Option<f64> {
+    let s = fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kb: f64 = s
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Runs `edgekf swarm`.
+///
+/// # Errors
+/// A bad scenario or flag (before anything starts), a process that fails (its message), or
+/// the outputs' writing.
+pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
+    let sc = scenario(&args.scenario, &args.over)?;
+    let n = sc.framework().agents();
+    edgekf::agent::Agent::new(&sc, 0, false)
+        .with_context(|| format!("{}", args.scenario.display()))?;
+    let horizon = sc.steps() as f64 * sc.dt();
+    let mut kills: BTreeMap<usize, usize> = BTreeMap::new();
+    for &(a, t) in &args.kill {
+        if a >= n {
+            bail!("flag `--kill {a}@{t}`: agent {a} is out of range: the scenario has agents 0..{n}");
+        }
+        if t >= horizon {
+            bail!("flag `--kill {a}@{t}`: {t} s is at or past the end of the run ({horizon} s)");
+        }
+        kills.insert(a, ((t / sc.dt()).floor() as usize).max(1));
+    }
+    edgekf_io::outdir::check(&args.out, &edgekf_io::outdir::StudyId::new("swarm", sc.name()), args.force)?;
+    let net = NetArgs {
+        swarm: format!("swarm-{}", std::process::id()),
+        world: format!("tcp/127.0.0.1:{}", free_tcp_port()?),
+        mesh_base_port: free_udp_base(n)?,
+        mesh_hosts: vec!["127.0.0.1".into()],
+        zenoh_config: args.zenoh_config.clone(),
+        mode: args.mode,
+        period_ms: args.period_ms,
+        lossy: args.lossy,
+        grace_ms: args.grace_ms,
+        live: !args.kill.is_empty(),
+        timeout_s: args.timeout_s,
+    };
+    let exe = std::env::current_exe().context("cannot find this program's executable")?;
+    let logs = std::env::temp_dir().join(format!("edgekf-swarm-{}", std::process::id()));
+    fs::create_dir_all(&logs).with_context(|| format!("cannot create {}", logs.display()))?;
+    interrupt::remove_on_interrupt(&logs);
+    let scenario_arg = args.scenario.display().to_string();
+    let mut common = net.to_args();
+    common.extend(over_args(&args.over));
+    let mut world_args = vec!["world".into(), scenario_arg.clone(), "--out".into()];
+    world_args.push(args.out.display().to_string());
+    world_args.push("--progress-lines".into());
+    if args.force {
+        world_args.push("--force".into());
+    }
+    if let Some(cmd) = &args.after_ready {
+        world_args.extend(["--after-ready".into(), cmd.clone()]);
+    }
+    world_args.extend(common.clone());
+    let started = Instant::now();
+    let mut world = spawn(&exe, &world_args, Stdio::piped(), &logs.join("world.log"))?;
+    interrupt::remove_on_interrupt(&edgekf_io::staging_dir_of(&args.out, world.id()));
+    let mut agents: Vec<Option<Child>> = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut a = vec!["agent".into(), scenario_arg.clone(), "--id".into(), i.to_string()];
+        a.extend(common.clone());
+        agents.push(Some(spawn(&exe, &a, Stdio::null(), &logs.join(format!("agent-{i}.log")))?));
+    }
+    let run = supervise(&mut world, &mut agents, &kills, &logs);
+    for a in agents.iter_mut().flatten() {
+        let _ = a.kill();
+        let _ = a.wait();
+    }
+    let _ = world.kill();
+    let _ = world.wait();
+    let result = run.map(|peak| {
+        let peaks: Vec<f64> = peak.into_iter().flatten().collect();
+        if !peaks.is_empty() {
+            let mean = peaks.iter().sum::<f64>() / peaks.len() as f64;
+            let max = peaks.iter().copied().fold(0.0, f64::max);
+            eprintln!(
+                "memory per agent process: peak RSS {mean:.1} MB on average, {max:.1} MB at most ({} processes); wall time {:.1} s",
+                peaks.len(),
+                started.elapsed().as_secs_f64()
+            );
+        }
+    });
+    let _ = fs::remove_dir_all(&logs);
+    result?;
+    if args.report {
+        crate::report::write_page(&args.out)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The overrides as flags for the children.
+fn over_args(o: &Overrides) -> Vec<String> {
+    let mut a = Vec::new();
+    for (flag, v) in [("--steps", o.steps), ("--every", o.every)] {
+        if let Some(v) = v {
+            a.extend([flag.to_string(), v.to_string()]);
+        }
+    }
+    if let Some(s) = o.seed {
+        a.extend(["--seed".to_string(), s.to_string()]);
+    }
+    if o.allow_divergence {
+        a.push("--allow-divergence".into());
+    }
+    a
+}
+
+/// Follows the world's progress, kills agents on time, relays the world's other output, and
+/// returns each agent process's peak memory when the world is done.
+fn supervise(
+    world: &mut Child,
+    agents: &mut [Option<Child>],
+    kills: &BTreeMap<usize, usize>,
+    logs: &Path,
+) -> Result<Vec<Option<f64>>> {
+    let (tx, rx) = mpsc::channel::<String>();
+    let stdout = world.stdout.take().context("the world's output")?;
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut peak: Vec<Option<f64>> = vec![None; agents.len()];
+    let mut last_sample = Instant::now();
+    loop {
+        match rx.recv_timeout(Duration::from_millis(50)) {
+            Ok(line) => match line.strip_prefix("progress ") {
+                Some(k) => {
+                    let k: usize = k.trim().parse().unwrap_or(0);
+                    for (&a, &at) in kills {
+                        if k + 1 >= at {
+                            if let Some(mut c) = agents[a].take() {
+                                peak[a] = rss_mb(c.id());
+                                let _ = c.kill(); // SIGKILL
+                                let _ = c.wait();
+                            }
+                        }
+                    }
+                }
+                None => println!("{line}"),
+            },
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                // The world closed its output: it is ending.
+                let status = world.wait().context("waiting for the world")?;
+                for (i, a) in agents.iter().enumerate() {
+                    if let Some(c) = a {
+                        peak[i] = peak[i].or(rss_mb(c.id()));
+                    }
+                }
+                if status.success() {
+                    wait_agents(agents, logs)?;
+                    return Ok(peak);
+                }
+                bail!("{}", failure(agents, logs));
+            }
+        }
+        if last_sample.elapsed() > Duration::from_millis(500) {
+            last_sample = Instant::now();
+            for (i, a) in agents.iter().enumerate() {
+                if let Some(c) = a {
+                    peak[i] = rss_mb(c.id()).or(peak[i]);
+                }
+            }
+        }
+    }
+}
+
+/// The agents end after the world's stop; one that fails is named.
+fn wait_agents(agents: &mut [Option<Child>], logs: &Path) -> Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    for (i, a) in agents.iter_mut().enumerate() {
+        let Some(c) = a else { continue };
+        loop {
+            match c.try_wait()? {
+                Some(s) if s.success() => break,
+                Some(s) => bail!(
+                    "agent {i} failed ({s}):\n  {}",
+                    tail(&logs.join(format!("agent-{i}.log")))
+                ),
+                None if Instant::now() > deadline => {
+                    let _ = c.kill();
+                    break;
+                }
+                None => std::thread::sleep(Duration::from_millis(20)),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The world's error, with the first agent error that explains it.
+fn failure(agents: &mut [Option<Child>], logs: &Path) -> String {
+    let mut msg = format!("the world failed:\n  {}", tail(&logs.join("world.log")));
+    for (i, a) in agents.iter_mut().enumerate() {
+        if let Some(c) = a {
+            if let Ok(Some(s)) = c.try_wait() {
+                if !s.success() {
+                    msg.push_str(&format!(
+                        "\nagent {i} failed ({s}):\n  {}",
+                        tail(&logs.join(format!("agent-{i}.log")))
+                    ));
+                    break;
+                }
+            }
+        }
+    }
+    msg
+}
