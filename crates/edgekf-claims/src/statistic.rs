@@ -1055,7 +1055,7 @@ fn model(m: ModelStat, sc: &Scenario) -> Measured {
 
 fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -> f64 {
     let last = tr.times.len() - 1;
-    let model = &sc.model;
+    let model = sc.model();
     match s {
         SlamStat::Omega => sc.theorem1().zeta_sup,
         SlamStat::Condition25 => sc.theorem1().condition25_sup,
@@ -1063,7 +1063,7 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
         SlamStat::ErrorAbscissa => sc.theorem1().error_abscissa,
         SlamStat::ErrorAbscissaEq10 => sc.theorem1().error_abscissa_eq10,
         SlamStat::ReducedUnobservable => sc
-            .observers
+            .observers()
             .iter()
             .map(|o| (o.a11.nrows() - observable_dimension(&o.a11, &o.h_bar)) as f64)
             .sum(),
@@ -1082,12 +1082,12 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
             (cols - observable_dimension(&model.a, &h)) as f64
         }
         SlamStat::PrintedCareOnAxis => sc
-            .observers
+            .observers()
             .iter()
-            .map(|o| printed_care(model, o, sc.q).on_axis as f64)
+            .map(|o| printed_care(model, o, sc.q()).on_axis as f64)
             .sum(),
         SlamStat::CareMinEigenvalue => sc
-            .observers
+            .observers()
             .iter()
             .map(|o| o.care.min_eig)
             .fold(f64::INFINITY, f64::min),
@@ -1120,7 +1120,7 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
 fn eq26_printed_sign(sc: &edgekf_slam::Scenario) -> f64 {
     let r = sc.theorem1();
     let blocks: Vec<DMatrix<f64>> = sc
-        .observers
+        .observers()
         .iter()
         .map(|o| &o.a11 - &o.k_bar * &o.h_bar)
         .collect();
