@@ -28,21 +28,21 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-fn value_err(e: anyhow::Error) -> PyErr {
-    PyValueError::new_err(format!("{e:#}"))
+fn value_err(e: impl Into<anyhow::Error>) -> PyErr {
+    PyValueError::new_err(format!("{:#}", e.into()))
 }
 
 /// Loads a scenario: `text` of a file (`source` its path) or a JSON object from a dict.
 fn load(source: &str, text: &str, base: Option<&Path>, is_dict: bool) -> anyhow::Result<Scenario> {
     if is_dict {
-        return edgekf_io::load_scenario_json(source, text, base);
+        return Ok(edgekf_io::load_scenario_json(source, text, base)?);
     }
     if let edgekf_io::Kind::Slam = edgekf_io::kind_of(text) {
         anyhow::bail!(
             "{source}: a SLAM scenario (`kind = \"slam\"`) runs with the CLI (`edgekf run`); the Python package runs filter scenarios"
         );
     }
-    edgekf_io::load_scenario(source, text, base)
+    Ok(edgekf_io::load_scenario(source, text, base)?)
 }
 
 /// The CLI's `--runs/--steps/--every/--seed` overrides.
@@ -440,7 +440,7 @@ fn reproduce(
     }
     let sc = e
         .scenario()
-        .map_err(|x| PyValueError::new_err(x.to_string()))?;
+        .map_err(|err| PyValueError::new_err(err.to_string()))?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;

@@ -71,8 +71,10 @@ pub enum ClaimsError {
     Cancelled,
 }
 
-/// The paper a claim comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+/// The paper a claim comes from (`paper = "eusipco"` … in a claims file: the variant's name in
+/// snake case).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Paper {
     /// van der Marel & Rajan, EUSIPCO 2022.
     Eusipco,

@@ -12,6 +12,7 @@ use edgekf::sim::Results;
 use edgekf_slam::linalg::observable_dimension;
 use edgekf_slam::observer::printed_care;
 use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Deserializer};
 
 use crate::stats::{self, Estimate};
 use crate::study::Data;
@@ -21,11 +22,60 @@ use crate::study::Data;
 /// log-spaced reports of a transient do not outweigh the evenly spaced ones after it.
 pub type Window = (f64, f64);
 
-/// The first reported step (k = 1).
+/// The first reported step (k = 1); `"first"` in the claims files.
 pub const FIRST: Window = (0.0, 0.001);
 
-/// A statistic of one study.
-#[derive(Debug, Clone, PartialEq)]
+/// Steady state for the estimation error and the covariance, 15–30 s (the filters' floors are
+/// reached within a second); `"steady"` in the claims files.
+pub const STEADY: Window = (15.0, 30.0);
+
+/// The floor of the Procrustes error, 25–30 s (the formation converges at ≈ 0.44 /s);
+/// `"floor"` in the claims files.
+pub const FLOOR: Window = (25.0, 30.0);
+
+/// The transient, 0.5–4 s; `"early"` in the claims files.
+pub const EARLY: Window = (0.5, 4.0);
+
+/// A GA-RKF run of 60 s after its first reports (ψ is undefined before them); `"whole"` in the
+/// claims files.
+pub const WHOLE: Window = (0.5, 60.0);
+
+/// The windows the claims files name.
+pub const NAMED_WINDOWS: [(&str, Window); 5] = [
+    ("first", FIRST),
+    ("steady", STEADY),
+    ("floor", FLOOR),
+    ("early", EARLY),
+    ("whole", WHOLE),
+];
+
+/// Reads a window of a claims file: `[from, to]` in seconds, or one of [`NAMED_WINDOWS`].
+fn window<'de, D: Deserializer<'de>>(d: D) -> Result<Window, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Given {
+        Named(String),
+        Span(f64, f64),
+    }
+    match Given::deserialize(d)? {
+        Given::Span(a, b) => Ok((a, b)),
+        Given::Named(n) => NAMED_WINDOWS
+            .iter()
+            .find(|(name, _)| *name == n)
+            .map(|(_, w)| *w)
+            .ok_or_else(|| {
+                serde::de::Error::custom(format!(
+                    "unknown window `{n}`: [from, to] in seconds, or one of first, steady, floor, early, whole"
+                ))
+            }),
+    }
+}
+
+/// A statistic of one study. In a claims file (`claims/*.toml`) it is a table with one key, the
+/// variant's name in snake case (`stat.ratio = { metric = "est_error", num = "crkf", den =
+/// "jrkf", window = "steady" }`); windows are `[from, to]` or a name of [`NAMED_WINDOWS`].
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Statistic {
     /// Mean over runs of the per-run window mean of `metric` of `label`.
     Mean {
@@ -34,6 +84,7 @@ pub enum Statistic {
         /// Metric name.
         metric: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// `num / den`: ratio of the window means of `metric` of two estimators, paired over runs.
@@ -45,6 +96,7 @@ pub enum Statistic {
         /// Denominator estimator.
         den: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// Ratio of the window means of two metrics of one estimator, paired over runs (e.g. the
@@ -57,6 +109,7 @@ pub enum Statistic {
         /// Denominator metric.
         den: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// Ratio of one estimator's window means of `metric` over two windows, paired over runs.
@@ -66,8 +119,10 @@ pub enum Statistic {
         /// Metric.
         metric: &'static str,
         /// Numerator window.
+        #[serde(deserialize_with = "window")]
         num: Window,
         /// Denominator window.
+        #[serde(deserialize_with = "window")]
         den: Window,
     },
     /// The paired ratio `num/den` in window `first` over the same ratio in window `second`
@@ -80,8 +135,10 @@ pub enum Statistic {
         /// Denominator estimator.
         den: &'static str,
         /// First window.
+        #[serde(deserialize_with = "window")]
         first: Window,
         /// Second window.
+        #[serde(deserialize_with = "window")]
         second: Window,
     },
     /// Exponential decay rate `ln(v(a)/v(b)) / (b − a)` of each run's `metric`, mean over runs
@@ -92,6 +149,7 @@ pub enum Statistic {
         /// Metric.
         metric: &'static str,
         /// `(a, b)`.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// Ratio of the decay rates over two windows, paired over runs (1: a pure exponential).
@@ -101,8 +159,10 @@ pub enum Statistic {
         /// Metric.
         metric: &'static str,
         /// Numerator window.
+        #[serde(deserialize_with = "window")]
         first: Window,
         /// Denominator window.
+        #[serde(deserialize_with = "window")]
         second: Window,
     },
     /// Ratio of the across-run standard deviations of `metric` (time average over the window's
@@ -115,6 +175,7 @@ pub enum Statistic {
         /// Denominator estimator.
         den: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// The largest value of the mean curve of `metric` in `window` over its value at the first
@@ -125,15 +186,17 @@ pub enum Statistic {
         /// Metric.
         metric: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// Largest over smallest window mean of `metric` among `labels`, jackknife over runs.
     Spread {
         /// Estimators.
-        labels: &'static [&'static str],
+        labels: Vec<&'static str>,
         /// Metric.
         metric: &'static str,
         /// Window.
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// Per seed, the time at which the mean curve of `metric` first falls within `tol`
@@ -141,10 +204,11 @@ pub enum Statistic {
     /// last label's time minus the first's (seconds), with the standard error over seeds.
     TimeToFloor {
         /// Estimators (the first and last are compared; all are reported).
-        labels: &'static [&'static str],
+        labels: Vec<&'static str>,
         /// Metric.
         metric: &'static str,
         /// Floor window.
+        #[serde(deserialize_with = "window")]
         floor: Window,
         /// Relative tolerance.
         tol: f64,
@@ -162,7 +226,7 @@ pub enum Statistic {
     /// 2(r(0) − r(1))` relative to that of `den`; per seed, standard error over seeds.
     InputRoughness {
         /// Numerator estimators (the roughest counts).
-        nums: &'static [&'static str],
+        nums: Vec<&'static str>,
         /// Denominator estimator.
         den: &'static str,
     },
@@ -189,6 +253,7 @@ pub enum Statistic {
         /// Estimator (a `garkf`).
         label: &'static str,
         /// Window (start after the first ψ: ψ is undefined before it).
+        #[serde(deserialize_with = "window")]
         window: Window,
     },
     /// The share of runs that stay stable (Li & Rajan Fig. 13; the rule of a sweep's `stable`,
@@ -198,8 +263,10 @@ pub enum Statistic {
         /// Estimator.
         label: &'static str,
         /// The reference window (before the failures).
+        #[serde(deserialize_with = "window")]
         reference: Window,
         /// The final window.
+        #[serde(deserialize_with = "window")]
         last: Window,
         /// The allowed growth.
         factor: f64,
@@ -212,8 +279,9 @@ pub enum Statistic {
     Slam(SlamStat),
 }
 
-/// Structural numbers of a filter scenario.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Structural numbers of a filter scenario (`stat.model = "mean_degree"` in a claims file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ModelStat {
     /// The stress's smallest nonzero eigenvalue if the framework is universally rigid (PSD,
     /// rank `N − D − 1`) and its graph a D-trilateration graph, else 0.
@@ -231,8 +299,9 @@ pub enum ModelStat {
     MeanDegree,
 }
 
-/// Numbers of the SLAM observer and its run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Numbers of the SLAM observer and its run (`stat.slam = "omega"` in a claims file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SlamStat {
     /// `λ_min Ω(∞)` of (24) with the corrected `−1/δ` (sup over δ).
     Omega,
@@ -437,6 +506,7 @@ impl Statistic {
         }
     }
 
+    /// A statistic of filter runs: each variant is one method of [`Filt`].
     fn eval_filters(&self, f: &Filt<'_>) -> Measured {
         let plain = |e: Estimate| Ok((e, None));
         match *self {
@@ -450,389 +520,85 @@ impl Statistic {
                 num,
                 den,
                 window,
-            } => plain(stats::ratio(
-                &f.units(num, metric, window)?,
-                &f.units(den, metric, window)?,
-            )),
+            } => plain(f.paired(num, metric, window, den, metric, window)?),
             Statistic::MetricRatio {
                 label,
                 num,
                 den,
                 window,
-            } => plain(stats::ratio(
-                &f.units(label, num, window)?,
-                &f.units(label, den, window)?,
-            )),
+            } => plain(f.paired(label, num, window, label, den, window)?),
             Statistic::WindowRatio {
                 label,
                 metric,
                 num,
                 den,
-            } => plain(stats::ratio(
-                &f.units(label, metric, num)?,
-                &f.units(label, metric, den)?,
-            )),
+            } => plain(f.paired(label, metric, num, label, metric, den)?),
             Statistic::GapRatio {
                 metric,
                 num,
                 den,
                 first,
                 second,
-            } => {
-                let (a1, b1) = (f.units(num, metric, first)?, f.units(den, metric, first)?);
-                let (a2, b2) = (f.units(num, metric, second)?, f.units(den, metric, second)?);
-                let sum = |v: &[f64], u: &[usize]| u.iter().map(|&i| v[i]).sum::<f64>();
-                let e = stats::jackknife(a1.len(), |u| {
-                    (sum(&a1, u) / sum(&b1, u)) / (sum(&a2, u) / sum(&b2, u))
-                });
-                let r1 = stats::ratio(&a1, &b1);
-                let r2 = stats::ratio(&a2, &b2);
-                Ok((
-                    e,
-                    Some(format!(
-                        "{num}/{den}: {} ± {} over {first:?} s, {} ± {} over {second:?} s",
-                        crate::rule::num(r1.value),
-                        crate::rule::num(r1.se),
-                        crate::rule::num(r2.value),
-                        crate::rule::num(r2.se)
-                    )),
-                ))
-            }
+            } => f.gap_ratio(metric, (num, den), first, second),
             Statistic::DecayRate {
                 label,
                 metric,
                 window,
-            } => {
-                let (a, b) = (
-                    f.at(label, metric, window.0)?,
-                    f.at(label, metric, window.1)?,
-                );
-                let rates: Vec<f64> = a
-                    .iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x / y).ln() / (window.1 - window.0))
-                    .collect();
-                plain(stats::mean(&rates))
-            }
+            } => plain(stats::mean(&f.decay_rates(label, metric, window)?)),
             Statistic::DecayRateRatio {
                 label,
                 metric,
                 first,
                 second,
-            } => {
-                let rate = |w: Window| -> Result<Vec<f64>, String> {
-                    let (a, b) = (f.at(label, metric, w.0)?, f.at(label, metric, w.1)?);
-                    Ok(a.iter()
-                        .zip(&b)
-                        .map(|(x, y)| (x / y).ln() / (w.1 - w.0))
-                        .collect())
-                };
-                let (r1, r2) = (rate(first)?, rate(second)?);
-                let note = format!(
-                    "rates {} /s over {first:?} s and {} /s over {second:?} s",
-                    crate::rule::num(stats::mean(&r1).value),
-                    crate::rule::num(stats::mean(&r2).value)
-                );
-                Ok((stats::ratio(&r1, &r2), Some(note)))
-            }
+            } => f.decay_rate_ratio(label, metric, first, second),
             Statistic::StdRatio {
                 metric,
                 num,
                 den,
                 window,
-            } => {
-                let (a, b) = (
-                    f.matrix(num, metric, window)?,
-                    f.matrix(den, metric, window)?,
-                );
-                let wt = f.weights(window)?;
-                let nk = a[0].len();
-                let e = stats::jackknife(a.len(), |u| {
-                    let sa: f64 = (0..nk).map(|k| wt[k] * std_of(&a, u, k)).sum();
-                    let sb: f64 = (0..nk).map(|k| wt[k] * std_of(&b, u, k)).sum();
-                    sa / sb
-                });
-                plain(e)
-            }
+            } => plain(f.std_ratio(metric, num, den, window)?),
             Statistic::PeakOverStart {
                 label,
                 metric,
                 window,
-            } => {
-                let m = f.matrix(label, metric, window)?;
-                let s = f.matrix(label, metric, FIRST)?;
-                let nk = m[0].len();
-                let e = stats::jackknife(m.len(), |u| {
-                    let peak = (0..nk)
-                        .map(|k| mean_of(&m, u, k))
-                        .fold(f64::NEG_INFINITY, f64::max);
-                    peak / mean_of(&s, u, 0)
-                });
-                plain(e)
-            }
+            } => plain(f.peak_over_start(label, metric, window)?),
+            _ => self.eval_filters_rest(f),
+        }
+    }
+
+    /// [`Statistic::eval_filters`] for the statistics that are not window means.
+    fn eval_filters_rest(&self, f: &Filt<'_>) -> Measured {
+        let plain = |e: Estimate| Ok((e, None));
+        match self {
             Statistic::Spread {
                 labels,
                 metric,
                 window,
-            } => {
-                let u: Vec<Vec<f64>> = labels
-                    .iter()
-                    .map(|l| f.units(l, metric, window))
-                    .collect::<Result<_, _>>()?;
-                let means = |idx: &[usize]| -> Vec<f64> {
-                    u.iter()
-                        .map(|v| idx.iter().map(|&i| v[i]).sum::<f64>() / idx.len() as f64)
-                        .collect()
-                };
-                let e = stats::jackknife(u[0].len(), |idx| {
-                    let m = means(idx);
-                    m.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-                        / m.iter().cloned().fold(f64::INFINITY, f64::min)
-                });
-                let all: Vec<usize> = (0..u[0].len()).collect();
-                let note = labels
-                    .iter()
-                    .zip(means(&all))
-                    .map(|(l, m)| format!("{l} {}", crate::rule::num(m)))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                Ok((e, Some(note)))
-            }
+            } => f.spread(labels, metric, *window),
             Statistic::TimeToFloor {
                 labels,
                 metric,
                 floor,
                 tol,
-            } => {
-                let time = |res: &Results, l: &str| -> Result<f64, String> {
-                    let c = Filt::curve(res, l, metric)?;
-                    let ks = idx(res, floor);
-                    let fl = ks.iter().map(|&k| c[k]).sum::<f64>() / ks.len() as f64;
-                    let k = c
-                        .iter()
-                        .position(|&v| v <= (1.0 + tol) * fl)
-                        .ok_or_else(|| format!("`{l}` never reaches its floor"))?;
-                    Ok(res.steps[k] as f64 * res.dt)
-                };
-                let mut per_label = Vec::new();
-                for l in labels {
-                    per_label.push(f.per_seed(|r| time(r, l))?);
-                }
-                let first = &per_label[0];
-                let last = &per_label[labels.len() - 1];
-                let diff: Vec<f64> = last.iter().zip(first).map(|(a, b)| a - b).collect();
-                let note = labels
-                    .iter()
-                    .zip(&per_label)
-                    .map(|(l, t)| format!("{l} {}", ms(stats::mean(t).value)))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                Ok((stats::mean(&diff), Some(note)))
-            }
-            Statistic::InputAr1 { label, minus } => {
-                let a1 = |r: &Results, l: &str, d: Option<usize>| -> Result<f64, String> {
-                    let a = Filt::acov(r, l)?;
-                    Ok(match d {
-                        Some(d) => a[d].1 / a[d].0,
-                        None => a.iter().map(|(r0, r1)| r1 / r0).sum::<f64>() / a.len() as f64,
-                    })
-                };
-                let v = f.per_seed(|r| {
-                    let x = a1(r, label, None)?;
-                    Ok(match minus {
-                        Some(m) => x - a1(r, m, None)?,
-                        None => x,
-                    })
-                })?;
-                let mut notes = Vec::new();
-                for l in std::iter::once(label).chain(minus) {
-                    let (x, y) = (
-                        stats::mean(&f.per_seed(|r| a1(r, l, Some(0)))?),
-                        stats::mean(&f.per_seed(|r| a1(r, l, Some(1)))?),
-                    );
-                    notes.push(format!(
-                        "{l} loop: a₁ = {:.3} ± {:.3} (x) / {:.3} ± {:.3} (y)",
-                        x.value, x.se, y.value, y.se
-                    ));
-                }
-                Ok((stats::mean(&v), Some(notes.join("; "))))
-            }
-            Statistic::InputRoughness { nums, den } => {
-                let rough = |r: &Results, l: &str| -> Result<f64, String> {
-                    let a = Filt::acov(r, l)?;
-                    Ok(a.iter().map(|(r0, r1)| 2.0 * (r0 - r1)).sum::<f64>())
-                };
-                let v = f.per_seed(|r| {
-                    let d = rough(r, den)?;
-                    let mut m = f64::NEG_INFINITY;
-                    for n in nums {
-                        m = m.max(rough(r, n)? / d);
-                    }
-                    Ok(m)
-                })?;
-                plain(stats::mean(&v))
-            }
-            Statistic::MaxAbsDifference { a, b } => {
-                let mut m: f64 = 0.0;
-                let (mut count, mut total, mut reduced) = (0usize, 0usize, 0usize);
-                let differ = |x: &f64, y: &f64| x.to_bits() != y.to_bits();
-                for res in f.results {
-                    let ea = res.estimator(a).ok_or(format!("no estimator `{a}`"))?;
-                    let runs = res.runs.len();
-                    for (name, va) in ea.metrics.iter().zip(&ea.values) {
-                        let vb = Filt::values(res, b, name)?;
-                        for (x, y) in va.iter().zip(vb) {
-                            total += 1;
-                            if differ(x, y) {
-                                count += 1;
-                                m = m.max((x - y).abs());
-                            }
-                        }
-                        // The engine's reduction (mean, std over runs) of identical values.
-                        let (sa, sb) = (
-                            edgekf::sim::Series::of(va, runs, res.steps.len()),
-                            edgekf::sim::Series::of(vb, runs, res.steps.len()),
-                        );
-                        reduced += sa
-                            .mean
-                            .iter()
-                            .zip(&sb.mean)
-                            .filter(|(x, y)| differ(x, y))
-                            .count()
-                            + sa.std
-                                .iter()
-                                .zip(&sb.std)
-                                .filter(|(x, y)| differ(x, y))
-                                .count();
-                    }
-                }
-                Ok((
-                    Estimate::exact(m),
-                    Some(format!(
-                        "{count} of {total} per-run values differ; {reduced} reduced means and stds differ"
-                    )),
-                ))
-            }
-            Statistic::RelativeRange { label, metric } => {
-                let mut lo = f64::INFINITY;
-                let mut hi = f64::NEG_INFINITY;
-                let mut sum = 0.0;
-                let mut n = 0.0;
-                for res in f.results {
-                    for v in Filt::curve(res, label, metric)? {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                        sum += v;
-                        n += 1.0;
-                    }
-                }
-                plain(Estimate::exact((hi - lo) / (sum / n)))
-            }
-            Statistic::Theorem1 { label, window } => {
-                let def = f
-                    .scenario
-                    .estimators()
-                    .iter()
-                    .find(|d| d.label() == label)
-                    .ok_or_else(|| format!("no estimator `{label}` in the study"))?;
-                let (c, b) = f
-                    .scenario
-                    .theorem1_means(def.samples())
-                    .ok_or("no agent has a feasible RAL on the nominal graph")?;
-                let psi = f.matrix(label, "psi", window)?;
-                let delta = f.matrix(label, "tracking_error", window)?;
-                let nk = psi[0].len();
-                // The worst step; steps where ψ is undefined in some run are left out.
-                let e = stats::jackknife(psi.len(), |u| {
-                    (0..nk)
-                        .map(|k| mean_of(&psi, u, k) / (c * mean_of(&delta, u, k) + b))
-                        .filter(|x| x.is_finite())
-                        .fold(f64::NEG_INFINITY, f64::max)
-                });
-                Ok((
-                    e,
-                    Some(format!(
-                        "c̄ = {}, b̄ = {} (means over the agents)",
-                        crate::rule::num(c),
-                        crate::rule::num(b)
-                    )),
-                ))
-            }
+            } => f.time_to_floor(labels, metric, *floor, *tol),
+            Statistic::InputAr1 { label, minus } => f.input_ar1(label, *minus),
+            Statistic::InputRoughness { nums, den } => plain(f.input_roughness(nums, den)?),
+            Statistic::MaxAbsDifference { a, b } => f.max_abs_difference(a, b),
+            Statistic::RelativeRange { label, metric } => plain(f.relative_range(label, metric)?),
+            Statistic::Theorem1 { label, window } => f.theorem1(label, *window),
             Statistic::StableShare {
                 label,
                 reference,
                 last,
                 factor,
-            } => {
-                let rule = edgekf::scenario::StableSpec {
-                    reference: [reference.0, reference.1],
-                    final_window: [last.0, last.1],
-                    factor,
-                };
-                let mut v = Vec::new();
-                for res in f.results {
-                    v.extend(
-                        edgekf::sim::sweep::stable_runs(res, label, &rule).ok_or_else(|| {
-                            format!("no `tracking_error` of estimator `{label}` in the study")
-                        })?,
-                    );
-                }
-                plain(stats::mean(&v))
-            }
-            Statistic::Max(_) | Statistic::Model(_) | Statistic::Slam(_) => {
-                Err("the statistic does not apply to a filter study".into())
-            }
+            } => plain(f.stable_share(label, *reference, *last, *factor)?),
+            _ => Err("the statistic does not apply to a filter study".into()),
         }
     }
 
     /// The statistic in words.
     pub fn describe(&self) -> String {
-        let w = |w: &Window| {
-            if *w == FIRST {
-                "at the first step".to_string()
-            } else {
-                format!("over {}–{} s", w.0, w.1)
-            }
-        };
         match self {
-            Statistic::Mean {
-                label,
-                metric,
-                window,
-            } => format!("mean of `{metric}` of {label} {}", w(window)),
-            Statistic::Ratio {
-                metric,
-                num,
-                den,
-                window,
-            } => format!("{num}/{den} of `{metric}` {}, paired over runs", w(window)),
-            Statistic::MetricRatio {
-                label,
-                num,
-                den,
-                window,
-            } => format!("`{num}`/`{den}` of {label} {}, paired over runs", w(window)),
-            Statistic::WindowRatio {
-                label,
-                metric,
-                num,
-                den,
-            } => format!(
-                "`{metric}` of {label} {} over {}, paired over runs",
-                w(num),
-                w(den)
-            ),
-            Statistic::GapRatio {
-                metric,
-                num,
-                den,
-                first,
-                second,
-            } => format!(
-                "{num}/{den} of `{metric}` {} over the same {}, jackknife over runs",
-                w(first),
-                w(second)
-            ),
             Statistic::DecayRate {
                 label,
                 metric,
@@ -840,54 +606,6 @@ impl Statistic {
             } => format!(
                 "decay rate of `{metric}` of {label} between {} and {} s [1/s], mean over runs",
                 window.0, window.1
-            ),
-            Statistic::DecayRateRatio {
-                label,
-                metric,
-                first,
-                second,
-            } => format!(
-                "decay rate of `{metric}` of {label} {} over that {}, paired over runs",
-                w(first),
-                w(second)
-            ),
-            Statistic::StdRatio {
-                metric,
-                num,
-                den,
-                window,
-            } => format!(
-                "{num}/{den} of the across-run std of `{metric}` {}, jackknife over runs",
-                w(window)
-            ),
-            Statistic::PeakOverStart {
-                label,
-                metric,
-                window,
-            } => format!(
-                "peak of the mean `{metric}` of {label} {} over its start, jackknife over runs",
-                w(window)
-            ),
-            Statistic::Spread {
-                labels,
-                metric,
-                window,
-            } => format!(
-                "largest/smallest mean `{metric}` among {} {}, jackknife over runs",
-                labels.join(", "),
-                w(window)
-            ),
-            Statistic::TimeToFloor {
-                labels,
-                metric,
-                floor,
-                tol,
-            } => format!(
-                "time for the mean `{metric}` to come within {:.0} % of its floor ({}), {} minus {} [s], per seed",
-                tol * 100.0,
-                w(floor),
-                labels[labels.len() - 1],
-                labels[0]
             ),
             Statistic::InputAr1 { label, minus } => match minus {
                 None => format!("AR(1) coefficient a₁ of the inputs in the {label} loop, per seed"),
@@ -912,10 +630,6 @@ impl Statistic {
                     .collect::<Vec<_>>()
                     .join("; ")
             ),
-            Statistic::Theorem1 { label, window } => format!(
-                "largest E[ψ]/(c̄·E[δ] + b̄) of {label} {} (Theorem 1 holds below 1)",
-                w(window)
-            ),
             Statistic::StableShare {
                 label,
                 reference,
@@ -927,7 +641,454 @@ impl Statistic {
             ),
             Statistic::Model(m) => m.describe().into(),
             Statistic::Slam(s) => s.describe().into(),
+            _ => self.describe_windowed(),
         }
+    }
+
+    /// [`Statistic::describe`] for the statistics over windows of reports.
+    fn describe_windowed(&self) -> String {
+        match self {
+            Statistic::Mean {
+                label,
+                metric,
+                window,
+            } => format!("mean of `{metric}` of {label} {}", over(window)),
+            Statistic::Ratio {
+                metric,
+                num,
+                den,
+                window,
+            } => format!(
+                "{num}/{den} of `{metric}` {}, paired over runs",
+                over(window)
+            ),
+            Statistic::MetricRatio {
+                label,
+                num,
+                den,
+                window,
+            } => format!(
+                "`{num}`/`{den}` of {label} {}, paired over runs",
+                over(window)
+            ),
+            Statistic::WindowRatio {
+                label,
+                metric,
+                num,
+                den,
+            } => format!(
+                "`{metric}` of {label} {} over {}, paired over runs",
+                over(num),
+                over(den)
+            ),
+            Statistic::GapRatio {
+                metric,
+                num,
+                den,
+                first,
+                second,
+            } => format!(
+                "{num}/{den} of `{metric}` {} over the same {}, jackknife over runs",
+                over(first),
+                over(second)
+            ),
+            Statistic::DecayRateRatio {
+                label,
+                metric,
+                first,
+                second,
+            } => format!(
+                "decay rate of `{metric}` of {label} {} over that {}, paired over runs",
+                over(first),
+                over(second)
+            ),
+            _ => self.describe_windowed_rest(),
+        }
+    }
+
+    /// [`Statistic::describe_windowed`], continued.
+    fn describe_windowed_rest(&self) -> String {
+        match self {
+            Statistic::StdRatio {
+                metric,
+                num,
+                den,
+                window,
+            } => format!(
+                "{num}/{den} of the across-run std of `{metric}` {}, jackknife over runs",
+                over(window)
+            ),
+            Statistic::PeakOverStart {
+                label,
+                metric,
+                window,
+            } => format!(
+                "peak of the mean `{metric}` of {label} {} over its start, jackknife over runs",
+                over(window)
+            ),
+            Statistic::Spread {
+                labels,
+                metric,
+                window,
+            } => format!(
+                "largest/smallest mean `{metric}` among {} {}, jackknife over runs",
+                labels.join(", "),
+                over(window)
+            ),
+            Statistic::TimeToFloor {
+                labels,
+                metric,
+                floor,
+                tol,
+            } => format!(
+                "time for the mean `{metric}` to come within {:.0} % of its floor ({}), {} minus {} [s], per seed",
+                tol * 100.0,
+                over(floor),
+                labels[labels.len() - 1],
+                labels[0]
+            ),
+            Statistic::Theorem1 { label, window } => format!(
+                "largest E[ψ]/(c̄·E[δ] + b̄) of {label} {} (Theorem 1 holds below 1)",
+                over(window)
+            ),
+            _ => unreachable!("describe handles the other statistics"),
+        }
+    }
+}
+
+/// A window in words: `at the first step` or `over a–b s`.
+fn over(w: &Window) -> String {
+    if *w == FIRST {
+        "at the first step".to_string()
+    } else {
+        format!("over {}–{} s", w.0, w.1)
+    }
+}
+
+/// The statistics of filter runs, one method per [`Statistic`] that is not a plain window mean.
+impl Filt<'_> {
+    /// The ratio of the window means of (`a`, `ma`, `wa`) and (`b`, `mb`, `wb`), paired over
+    /// units.
+    fn paired(
+        &self,
+        a: &str,
+        ma: &str,
+        wa: Window,
+        b: &str,
+        mb: &str,
+        wb: Window,
+    ) -> Result<Estimate, String> {
+        Ok(stats::ratio(
+            &self.units(a, ma, wa)?,
+            &self.units(b, mb, wb)?,
+        ))
+    }
+
+    fn gap_ratio(
+        &self,
+        metric: &str,
+        (num, den): (&str, &str),
+        first: Window,
+        second: Window,
+    ) -> Measured {
+        let (a1, b1) = (
+            self.units(num, metric, first)?,
+            self.units(den, metric, first)?,
+        );
+        let (a2, b2) = (
+            self.units(num, metric, second)?,
+            self.units(den, metric, second)?,
+        );
+        let sum = |v: &[f64], u: &[usize]| u.iter().map(|&i| v[i]).sum::<f64>();
+        let e = stats::jackknife(a1.len(), |u| {
+            (sum(&a1, u) / sum(&b1, u)) / (sum(&a2, u) / sum(&b2, u))
+        });
+        let r1 = stats::ratio(&a1, &b1);
+        let r2 = stats::ratio(&a2, &b2);
+        Ok((
+            e,
+            Some(format!(
+                "{num}/{den}: {} ± {} over {first:?} s, {} ± {} over {second:?} s",
+                crate::rule::num(r1.value),
+                crate::rule::num(r1.se),
+                crate::rule::num(r2.value),
+                crate::rule::num(r2.se)
+            )),
+        ))
+    }
+
+    /// Per-unit decay rates `ln(v(a)/v(b)) / (b − a)` over `w = (a, b)`.
+    fn decay_rates(&self, label: &str, metric: &str, w: Window) -> Result<Vec<f64>, String> {
+        let (a, b) = (self.at(label, metric, w.0)?, self.at(label, metric, w.1)?);
+        Ok(a.iter()
+            .zip(&b)
+            .map(|(x, y)| (x / y).ln() / (w.1 - w.0))
+            .collect())
+    }
+
+    fn decay_rate_ratio(
+        &self,
+        label: &str,
+        metric: &str,
+        first: Window,
+        second: Window,
+    ) -> Measured {
+        let (r1, r2) = (
+            self.decay_rates(label, metric, first)?,
+            self.decay_rates(label, metric, second)?,
+        );
+        let note = format!(
+            "rates {} /s over {first:?} s and {} /s over {second:?} s",
+            crate::rule::num(stats::mean(&r1).value),
+            crate::rule::num(stats::mean(&r2).value)
+        );
+        Ok((stats::ratio(&r1, &r2), Some(note)))
+    }
+
+    fn std_ratio(
+        &self,
+        metric: &str,
+        num: &str,
+        den: &str,
+        window: Window,
+    ) -> Result<Estimate, String> {
+        let (a, b) = (
+            self.matrix(num, metric, window)?,
+            self.matrix(den, metric, window)?,
+        );
+        let wt = self.weights(window)?;
+        let nk = a[0].len();
+        Ok(stats::jackknife(a.len(), |u| {
+            let sa: f64 = (0..nk).map(|k| wt[k] * std_of(&a, u, k)).sum();
+            let sb: f64 = (0..nk).map(|k| wt[k] * std_of(&b, u, k)).sum();
+            sa / sb
+        }))
+    }
+
+    fn peak_over_start(
+        &self,
+        label: &str,
+        metric: &str,
+        window: Window,
+    ) -> Result<Estimate, String> {
+        let m = self.matrix(label, metric, window)?;
+        let s = self.matrix(label, metric, FIRST)?;
+        let nk = m[0].len();
+        Ok(stats::jackknife(m.len(), |u| {
+            let peak = (0..nk)
+                .map(|k| mean_of(&m, u, k))
+                .fold(f64::NEG_INFINITY, f64::max);
+            peak / mean_of(&s, u, 0)
+        }))
+    }
+
+    fn spread(&self, labels: &[&str], metric: &str, window: Window) -> Measured {
+        let u: Vec<Vec<f64>> = labels
+            .iter()
+            .map(|l| self.units(l, metric, window))
+            .collect::<Result<_, _>>()?;
+        let means = |idx: &[usize]| -> Vec<f64> {
+            u.iter()
+                .map(|v| idx.iter().map(|&i| v[i]).sum::<f64>() / idx.len() as f64)
+                .collect()
+        };
+        let e = stats::jackknife(u[0].len(), |idx| {
+            let m = means(idx);
+            m.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+                / m.iter().cloned().fold(f64::INFINITY, f64::min)
+        });
+        let all: Vec<usize> = (0..u[0].len()).collect();
+        let note = labels
+            .iter()
+            .zip(means(&all))
+            .map(|(l, m)| format!("{l} {}", crate::rule::num(m)))
+            .collect::<Vec<_>>()
+            .join(", ");
+        Ok((e, Some(note)))
+    }
+
+    fn time_to_floor(&self, labels: &[&str], metric: &str, floor: Window, tol: f64) -> Measured {
+        let time = |res: &Results, l: &str| -> Result<f64, String> {
+            let c = Filt::curve(res, l, metric)?;
+            let ks = idx(res, floor);
+            let fl = ks.iter().map(|&k| c[k]).sum::<f64>() / ks.len() as f64;
+            let k = c
+                .iter()
+                .position(|&v| v <= (1.0 + tol) * fl)
+                .ok_or_else(|| format!("`{l}` never reaches its floor"))?;
+            Ok(res.steps[k] as f64 * res.dt)
+        };
+        let mut per_label = Vec::new();
+        for l in labels {
+            per_label.push(self.per_seed(|r| time(r, l))?);
+        }
+        let first = &per_label[0];
+        let last = &per_label[labels.len() - 1];
+        let diff: Vec<f64> = last.iter().zip(first).map(|(a, b)| a - b).collect();
+        let note = labels
+            .iter()
+            .zip(&per_label)
+            .map(|(l, t)| format!("{l} {}", ms(stats::mean(t).value)))
+            .collect::<Vec<_>>()
+            .join(", ");
+        Ok((stats::mean(&diff), Some(note)))
+    }
+
+    fn input_ar1(&self, label: &str, minus: Option<&str>) -> Measured {
+        let a1 = |r: &Results, l: &str, d: Option<usize>| -> Result<f64, String> {
+            let a = Filt::acov(r, l)?;
+            Ok(match d {
+                Some(d) => a[d].1 / a[d].0,
+                None => a.iter().map(|(r0, r1)| r1 / r0).sum::<f64>() / a.len() as f64,
+            })
+        };
+        let v = self.per_seed(|r| {
+            let x = a1(r, label, None)?;
+            Ok(match minus {
+                Some(m) => x - a1(r, m, None)?,
+                None => x,
+            })
+        })?;
+        let mut notes = Vec::new();
+        for l in std::iter::once(label).chain(minus) {
+            let (x, y) = (
+                stats::mean(&self.per_seed(|r| a1(r, l, Some(0)))?),
+                stats::mean(&self.per_seed(|r| a1(r, l, Some(1)))?),
+            );
+            notes.push(format!(
+                "{l} loop: a₁ = {:.3} ± {:.3} (x) / {:.3} ± {:.3} (y)",
+                x.value, x.se, y.value, y.se
+            ));
+        }
+        Ok((stats::mean(&v), Some(notes.join("; "))))
+    }
+
+    fn input_roughness(&self, nums: &[&str], den: &str) -> Result<Estimate, String> {
+        let rough = |r: &Results, l: &str| -> Result<f64, String> {
+            let a = Filt::acov(r, l)?;
+            Ok(a.iter().map(|(r0, r1)| 2.0 * (r0 - r1)).sum::<f64>())
+        };
+        let v = self.per_seed(|r| {
+            let d = rough(r, den)?;
+            let mut m = f64::NEG_INFINITY;
+            for n in nums {
+                m = m.max(rough(r, n)? / d);
+            }
+            Ok(m)
+        })?;
+        Ok(stats::mean(&v))
+    }
+
+    fn max_abs_difference(&self, a: &str, b: &str) -> Measured {
+        let mut m: f64 = 0.0;
+        let (mut count, mut total, mut reduced) = (0usize, 0usize, 0usize);
+        let differ = |x: &f64, y: &f64| x.to_bits() != y.to_bits();
+        for res in self.results {
+            let ea = res.estimator(a).ok_or(format!("no estimator `{a}`"))?;
+            let runs = res.runs.len();
+            for (name, va) in ea.metrics.iter().zip(&ea.values) {
+                let vb = Filt::values(res, b, name)?;
+                for (x, y) in va.iter().zip(vb) {
+                    total += 1;
+                    if differ(x, y) {
+                        count += 1;
+                        m = m.max((x - y).abs());
+                    }
+                }
+                // The engine's reduction (mean, std over runs) of identical values.
+                let (sa, sb) = (
+                    edgekf::sim::Series::of(va, runs, res.steps.len()),
+                    edgekf::sim::Series::of(vb, runs, res.steps.len()),
+                );
+                reduced += sa
+                    .mean
+                    .iter()
+                    .zip(&sb.mean)
+                    .filter(|(x, y)| differ(x, y))
+                    .count()
+                    + sa.std
+                        .iter()
+                        .zip(&sb.std)
+                        .filter(|(x, y)| differ(x, y))
+                        .count();
+            }
+        }
+        Ok((
+            Estimate::exact(m),
+            Some(format!(
+                "{count} of {total} per-run values differ; {reduced} reduced means and stds differ"
+            )),
+        ))
+    }
+
+    fn relative_range(&self, label: &str, metric: &str) -> Result<Estimate, String> {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        let mut sum = 0.0;
+        let mut n = 0.0;
+        for res in self.results {
+            for v in Filt::curve(res, label, metric)? {
+                lo = lo.min(v);
+                hi = hi.max(v);
+                sum += v;
+                n += 1.0;
+            }
+        }
+        Ok(Estimate::exact((hi - lo) / (sum / n)))
+    }
+
+    fn theorem1(&self, label: &str, window: Window) -> Measured {
+        let def = self
+            .scenario
+            .estimators()
+            .iter()
+            .find(|d| d.label() == label)
+            .ok_or_else(|| format!("no estimator `{label}` in the study"))?;
+        let (c, b) = self
+            .scenario
+            .theorem1_means(def.samples())
+            .ok_or("no agent has a feasible RAL on the nominal graph")?;
+        let psi = self.matrix(label, "psi", window)?;
+        let delta = self.matrix(label, "tracking_error", window)?;
+        let nk = psi[0].len();
+        // The worst step; steps where ψ is undefined in some run are left out.
+        let e = stats::jackknife(psi.len(), |u| {
+            (0..nk)
+                .map(|k| mean_of(&psi, u, k) / (c * mean_of(&delta, u, k) + b))
+                .filter(|x| x.is_finite())
+                .fold(f64::NEG_INFINITY, f64::max)
+        });
+        Ok((
+            e,
+            Some(format!(
+                "c̄ = {}, b̄ = {} (means over the agents)",
+                crate::rule::num(c),
+                crate::rule::num(b)
+            )),
+        ))
+    }
+
+    fn stable_share(
+        &self,
+        label: &str,
+        reference: Window,
+        last: Window,
+        factor: f64,
+    ) -> Result<Estimate, String> {
+        let rule = edgekf::scenario::StableSpec {
+            reference: [reference.0, reference.1],
+            final_window: [last.0, last.1],
+            factor,
+        };
+        let mut v = Vec::new();
+        for res in self.results {
+            v.extend(
+                edgekf::sim::sweep::stable_runs(res, label, &rule).ok_or_else(|| {
+                    format!("no `tracking_error` of estimator `{label}` in the study")
+                })?,
+            );
+        }
+        Ok(stats::mean(&v))
     }
 }
 
@@ -1055,7 +1216,7 @@ fn model(m: ModelStat, sc: &Scenario) -> Measured {
 
 fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -> f64 {
     let last = tr.times.len() - 1;
-    let model = &sc.model;
+    let model = sc.model();
     match s {
         SlamStat::Omega => sc.theorem1().zeta_sup,
         SlamStat::Condition25 => sc.theorem1().condition25_sup,
@@ -1063,7 +1224,7 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
         SlamStat::ErrorAbscissa => sc.theorem1().error_abscissa,
         SlamStat::ErrorAbscissaEq10 => sc.theorem1().error_abscissa_eq10,
         SlamStat::ReducedUnobservable => sc
-            .observers
+            .observers()
             .iter()
             .map(|o| (o.a11.nrows() - observable_dimension(&o.a11, &o.h_bar)) as f64)
             .sum(),
@@ -1082,12 +1243,12 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
             (cols - observable_dimension(&model.a, &h)) as f64
         }
         SlamStat::PrintedCareOnAxis => sc
-            .observers
+            .observers()
             .iter()
-            .map(|o| printed_care(model, o, sc.q).on_axis as f64)
+            .map(|o| printed_care(model, o, sc.q()).on_axis as f64)
             .sum(),
         SlamStat::CareMinEigenvalue => sc
-            .observers
+            .observers()
             .iter()
             .map(|o| o.care.min_eig)
             .fold(f64::INFINITY, f64::min),
@@ -1120,7 +1281,7 @@ fn slam(s: SlamStat, sc: &edgekf_slam::Scenario, tr: &edgekf_slam::Trajectory) -
 fn eq26_printed_sign(sc: &edgekf_slam::Scenario) -> f64 {
     let r = sc.theorem1();
     let blocks: Vec<DMatrix<f64>> = sc
-        .observers
+        .observers()
         .iter()
         .map(|o| &o.a11 - &o.k_bar * &o.h_bar)
         .collect();

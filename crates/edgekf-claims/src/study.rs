@@ -2,18 +2,23 @@
 //! (seeds, size, gains, kernel, estimators) — each run once and shared by every claim that needs
 //! it.
 
+use std::sync::OnceLock;
+
 use edgekf::noise::Kernel;
 use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
 use edgekf::sim::{self, Observer, Results};
 use edgekf_io::reproductions::{self, Entry};
+use serde::Deserialize;
 
 use crate::ClaimsError;
 
-/// What a study computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What a study computes (`kind = "model"` … in `claims/studies.toml`; default `"filters"`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Kind {
     /// Monte Carlo runs of a filter scenario (one study per seed), with the inputs'
     /// autocovariance at lag 0 and 1.
+    #[default]
     Filters,
     /// The checked filter scenario only (its model and framework), no simulation.
     Model,
@@ -21,8 +26,9 @@ pub enum Kind {
     Slam,
 }
 
-/// Edits of a shipped filter scenario.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// Edits of a shipped filter scenario (`edit = { … }` in `claims/studies.toml`, these keys).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Edit {
     /// Monte Carlo runs per seed.
     pub runs: Option<usize>,
@@ -37,9 +43,11 @@ pub struct Edit {
     /// The spatial kernel of `Q_A`.
     pub kernel: Option<Kernel>,
     /// Keep only these estimator labels (in the file's order).
-    pub keep: Option<&'static [&'static str]>,
+    #[serde(borrow)]
+    pub keep: Option<Vec<&'static str>>,
     /// Extra estimators, as JSON entries (`{"kind": "rkf", "label": "rkf"}`).
-    pub add: &'static [&'static str],
+    #[serde(borrow)]
+    pub add: Vec<&'static str>,
     /// Run the scenario of the reproduction's companion `k` (e.g. the dense graph of
     /// `garkf-fig13`) instead of its own.
     pub companion: Option<usize>,
@@ -48,23 +56,32 @@ pub struct Edit {
     pub point: Option<usize>,
 }
 
-/// A simulation the claims are measured on.
-#[derive(Debug, Clone, PartialEq)]
+/// A simulation the claims are measured on (a `[[study]]` of `claims/studies.toml`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Study {
     /// Stable name.
     pub id: &'static str,
     /// The reproduction whose scenario it runs (`edgekf reproduce --list`).
     pub reproduction: &'static str,
     /// What it changes, in words (empty: the shipped scenario).
+    #[serde(default)]
     pub about: &'static str,
     /// What it computes.
+    #[serde(default)]
     pub kind: Kind,
     /// Edits of the shipped scenario.
+    #[serde(default)]
     pub edit: Edit,
     /// Seeds (the file's seed, then the next ones) at full size.
     pub seeds: usize,
-    /// Runs per seed at reduced size (tests).
+    /// Runs per seed at reduced size (tests; default 4).
+    #[serde(default = "four")]
     pub small_runs: usize,
+}
+
+fn four() -> usize {
+    4
 }
 
 /// How large to run the studies.
@@ -148,7 +165,7 @@ impl Study {
         if let Some(k) = ed.kernel {
             spec.noise.kernel = k;
         }
-        if let Some(keep) = ed.keep {
+        if let Some(keep) = &ed.keep {
             let have: Vec<String> = spec.estimators.iter().map(label_of).collect();
             if let Some(missing) = keep.iter().find(|k| !have.iter().any(|h| h == *k)) {
                 return Err(bad(format!(
@@ -159,7 +176,7 @@ impl Study {
             spec.estimators
                 .retain(|x| keep.contains(&label_of(x).as_str()));
         }
-        for a in ed.add {
+        for a in &ed.add {
             let x: EstimatorEntry =
                 serde_json::from_str(a).map_err(|x| bad(format!("estimator {a}: {x}")))?;
             spec.estimators.push(x);
@@ -269,274 +286,31 @@ impl Study {
     }
 }
 
+/// The studies file (`claims/studies.toml`).
+const STUDIES: &str = include_str!("../claims/studies.toml");
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, bound(deserialize = "'de: 'static"))]
+struct File {
+    study: Vec<Study>,
+}
+
+/// Every study of the shipped file, in the order they run.
+///
+/// # Errors
+/// The parser's error when the file does not read.
+pub fn load() -> Result<Vec<Study>, toml::de::Error> {
+    toml::from_str::<File>(STUDIES).map(|f| f.study)
+}
+
 /// Every study, in the order they run.
+///
+/// # Panics
+/// If the shipped studies file does not read ([`load`]; a bug the tests catch).
 pub fn studies() -> Vec<Study> {
-    let full = |id, reproduction, seeds| Study {
-        id,
-        reproduction,
-        about: "",
-        kind: Kind::Filters,
-        edit: Edit::default(),
-        seeds,
-        small_runs: 4,
-    };
-    vec![
-        Study {
-            about: "the shipped scenario; 4 seeds for the per-seed input statistics",
-            ..full("eusipco", "eusipco-fig4a", 4)
-        },
-        Study {
-            about: "σ_w = 0 (no disturbances), 3 s, rkf and jrkf, 2 runs (covariances are exact)",
-            edit: Edit {
-                sigma_w: Some(0.0),
-                steps: Some(3000),
-                runs: Some(2),
-                keep: Some(&["rkf", "jrkf"]),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("eusipco-calm", "eusipco-fig4a", 1)
-        },
-        Study {
-            about: "a white kernel (Q_A = I: uncorrelated disturbances), rkf and jrkf",
-            edit: Edit {
-                kernel: Some(Kernel::White),
-                keep: Some(&["rkf", "jrkf"]),
-                ..Edit::default()
-            },
-            ..full("eusipco-white", "eusipco-fig4a", 1)
-        },
-        Study {
-            about: "the shipped scenario, 2 seeds",
-            ..full("fig4.9", "thesis-fig4.9", 2)
-        },
-        full("fig4.8", "thesis-fig4.8", 1),
-        Study {
-            about: "follower and leader gains 10 (a ten times faster loop), mle and rkf, 3 seeds",
-            edit: Edit {
-                gain: Some(10.0),
-                keep: Some(&["mle", "rkf"]),
-                ..Edit::default()
-            },
-            ..full("fig4.8-gain10", "thesis-fig4.8", 3)
-        },
-        full("fig4.5", "thesis-fig4.5", 1),
-        Study {
-            about: "plus an MMSE filter with a very wide prior (σ²_prior = 1e3), 2 seeds",
-            edit: Edit {
-                add: &[r#"{"kind": "mmse", "prior_var": 1000.0, "label": "mmse-1e3"}"#],
-                ..Edit::default()
-            },
-            ..full("fig4.6", "thesis-fig4.6", 2)
-        },
-        full("fig3.3", "thesis-fig3.3", 1),
-        full("fig6.2", "thesis-fig6.2", 1),
-        Study {
-            about:
-                "the first second at one-step resolution (every = 1), the rkf-ar lanes plus the plain rkf, 6 seeds",
-            edit: Edit {
-                steps: Some(1000),
-                every: Some(1),
-                keep: Some(&["P_fail=0", "P_fail=0.25", "P_fail=0.5", "P_fail=0.75", "P_fail=1"]),
-                add: &[r#"{"kind": "rkf", "label": "rkf"}"#],
-                ..Edit::default()
-            },
-            ..full("fig6.2-onset", "thesis-fig6.2", 6)
-        },
-        Study {
-            about: "the shipped scenario, 2 seeds",
-            ..full("fig6.3", "thesis-fig6.3", 2)
-        },
-        Study {
-            about: "the hexagon scenario, checked (no simulation)",
-            kind: Kind::Model,
-            ..full("hexagon", "thesis-fig3.3", 1)
-        },
-        Study {
-            about: "the EUSIPCO noise model, checked (no simulation)",
-            kind: Kind::Model,
-            ..full("eusipco-model", "eusipco-fig4a", 1)
-        },
-        Study {
-            about: "λ = 1 (the sweep's first value), 10 runs, 60 s",
-            edit: Edit {
-                point: Some(0),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig8", "garkf-fig8", 1)
-        },
-        Study {
-            about: "λ = 0.2 (the sweep's second value), 10 runs, 60 s",
-            edit: Edit {
-                point: Some(1),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig8-low", "garkf-fig8", 1)
-        },
-        Study {
-            about: "the shipped scenario at 40 runs",
-            edit: Edit {
-                runs: Some(40),
-                ..Edit::default()
-            },
-            ..full("garkf-fig9", "garkf-fig9", 1)
-        },
-        Study {
-            about: "edge 5→0 lost for good (sweep value 0), 10 runs, 60 s",
-            edit: Edit {
-                runs: Some(10),
-                point: Some(0),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig10-lost", "garkf-fig10", 1)
-        },
-        Study {
-            about: "λ = 1 (sweep value 1), 10 runs, 60 s",
-            edit: Edit {
-                runs: Some(10),
-                point: Some(1),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig10", "garkf-fig10", 1)
-        },
-        Study {
-            about: "λ = 0.2 (sweep value 2), 10 runs, 60 s",
-            edit: Edit {
-                runs: Some(10),
-                point: Some(2),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig10-low", "garkf-fig10", 1)
-        },
-        Study {
-            about: "λ = 0.4 (the shipped scenario without its sweep), 10 runs, 60 s",
-            small_runs: 2,
-            ..full("garkf-fig11", "garkf-fig11", 1)
-        },
-        Study {
-            about: "λ = 0.2 (sweep value 1), 10 runs, 30 s",
-            edit: Edit {
-                steps: Some(3000),
-                point: Some(1),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig11-low", "garkf-fig11", 1)
-        },
-        Study {
-            about: "λ = 0.2 (sweep value 1), 10 runs, 60 s, plus RKF and GA-RKF with σ_w = 0.1",
-            edit: Edit {
-                point: Some(1),
-                keep: Some(&["no estimator"]),
-                add: &[
-                    r#"{"kind": "rkf-ca", "label": "RKF σw=0.1", "sigma_w": 0.1}"#,
-                    r#"{"kind": "garkf", "label": "GA-RKF σw=0.1", "sigma_w": 0.1, "epsilon": 0.08}"#,
-                ],
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig11-low-matched", "garkf-fig11", 1)
-        },
-        Study {
-            about: "λ = 0.8 (sweep value 4), 10 runs, 60 s",
-            edit: Edit {
-                point: Some(4),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig11-high", "garkf-fig11", 1)
-        },
-        Study {
-            about: "λ = 1 (sweep value 5), 10 runs, 60 s",
-            edit: Edit {
-                point: Some(5),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig11-full", "garkf-fig11", 1)
-        },
-        Study {
-            about: "agent 6 departs at t₀ = 10 s (the shipped scenario without its sweep), 20 runs, 30 s",
-            small_runs: 2,
-            ..full("garkf-fig12", "garkf-fig12", 1)
-        },
-        Study {
-            about: "agent 6 departs at t₀ = 10 s, 20 runs, 90 s (30 s past the maneuver's end)",
-            edit: Edit {
-                steps: Some(9000),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig12-long", "garkf-fig12", 1)
-        },
-        Study {
-            about: "agent 6 departs at t₀ = 0 (sweep value 0), 20 runs, 30 s",
-            edit: Edit {
-                point: Some(0),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig12-early", "garkf-fig12", 1)
-        },
-        Study {
-            about: "sparse graph, half the agents depart at 8 s (sweep value 4), 100 runs, 15 s",
-            edit: Edit {
-                runs: Some(100),
-                point: Some(4),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig13-sparse", "garkf-fig13", 1)
-        },
-        Study {
-            about: "sparse graph, 6 % of the agents depart at 8 s (sweep value 1), 20 runs, 15 s",
-            edit: Edit {
-                runs: Some(20),
-                point: Some(1),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig13-sparse-few", "garkf-fig13", 1)
-        },
-        Study {
-            about: "dense graph, half the agents depart at 8 s (sweep value 4), 10 runs, 15 s",
-            edit: Edit {
-                runs: Some(10),
-                companion: Some(0),
-                point: Some(4),
-                ..Edit::default()
-            },
-            small_runs: 2,
-            ..full("garkf-fig13-dense", "garkf-fig13", 1)
-        },
-        Study {
-            about: "the sparse 50-agent graph, checked (no simulation)",
-            kind: Kind::Model,
-            ..full("garkf-fig13-sparse-model", "garkf-fig13", 1)
-        },
-        Study {
-            about: "the dense 50-agent graph, checked (no simulation)",
-            kind: Kind::Model,
-            edit: Edit {
-                companion: Some(0),
-                ..Edit::default()
-            },
-            ..full("garkf-fig13-dense-model", "garkf-fig13", 1)
-        },
-        Study {
-            kind: Kind::Slam,
-            ..full("slam-fig3", "slam-fig3", 1)
-        },
-        Study {
-            kind: Kind::Slam,
-            ..full("slam-disturbed", "slam-disturbed", 1)
-        },
-    ]
+    static ALL: OnceLock<Vec<Study>> = OnceLock::new();
+    ALL.get_or_init(|| load().unwrap_or_else(|e| panic!("claims/studies.toml: {e}")))
+        .clone()
 }
 
 /// Looks a study up.

@@ -92,7 +92,8 @@ pub fn write_shard(st: &mut Staged, res: &Results, shard: (usize, usize)) -> Res
         "shard.json",
         serde_json::to_string_pretty(&header)?.as_bytes(),
     )?;
-    st.write("values.bin", &bin)
+    st.write("values.bin", &bin)?;
+    Ok(())
 }
 
 /// Reads a shard directory back into partial [`Results`].

@@ -596,7 +596,8 @@ fn simulate_sweep(sc: &Scenario) -> Result<sim::sweep::SweepResults> {
 }
 
 fn stage_scenario(st: &mut io::Staged, sc: &Scenario) -> Result<()> {
-    st.write("scenario.json", edgekf_io::scenario_json(sc)?.as_bytes())
+    st.write("scenario.json", edgekf_io::scenario_json(sc)?.as_bytes())?;
+    Ok(())
 }
 
 /// Stages scenario.json, metrics.csv, paths.csv, status.csv, a sweep's summary.csv and
@@ -620,7 +621,8 @@ fn stage_outputs(
         "provenance.json",
         report::Provenance::of_process().to_json().as_bytes(),
     )?;
-    figure::render_study(|file| st.path(file), sc, res, plots, extra)
+    figure::render_study(|file| st.path(file), sc, res, plots, extra)?;
+    Ok(())
 }
 
 fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {
@@ -690,19 +692,13 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Resu
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
     // Check every scenario before running any, so a bad flag fails at once. Companions (further
     // studies a figure draws) come before the figures that need them.
-    let embedded = |rel: &str| -> Result<edgekf::scenario::FrameworkSpec> {
-        let text = registry::framework_text(rel).with_context(|| {
-            format!("framework file `{rel}` is not shipped with the reproductions")
-        })?;
-        edgekf_io::framework::spec_from_json(text).map_err(|m| anyhow::anyhow!("{rel}: {m}"))
-    };
     let mut files: Vec<(&str, Scenario)> = Vec::new();
     for e in &entries {
         for (file, text) in e.companions.iter().copied().chain([(e.file, e.text)]) {
             if files.iter().any(|(f, _)| *f == file) {
                 continue;
             }
-            let sc = io::load_scenario_with(file, text, &embedded)?;
+            let sc = io::load_scenario_with(file, text, &registry::embedded_framework)?;
             let sc = apply_overrides(sc, over).with_context(|| file.to_string())?;
             check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
             files.push((file, sc));

@@ -382,60 +382,111 @@ fn compact(v: &Value) -> String {
     }
 }
 
+/// The scalar keys of a resolved scenario with their meaning, in the order shown.
+const SCALARS: &[(&str, &str)] = &[
+    ("schema", "format"),
+    ("name", "name"),
+    ("description", "what it reproduces"),
+    ("agents", "agents N"),
+    ("dim", "dimension D"),
+    ("leaders", "leaders"),
+    ("dt", "time step Δt [s]"),
+    ("steps", "steps"),
+    ("runs", "Monte Carlo runs"),
+    ("seed", "seed"),
+    ("samples_per_step", "measurements per step T"),
+    ("every", "report every … steps"),
+    (
+        "reports_per_decade",
+        "extra log-spaced reports per decade (first interval)",
+    ),
+    ("paths_run", "run recorded in paths.csv"),
+    (
+        "paths_per_decade",
+        "paths.csv: log-spaced reports per decade",
+    ),
+    ("follower_gain", "follower gain c"),
+    ("leader_gain", "leader gain k"),
+    ("allow_divergence", "divergence allowed"),
+];
+
+/// The keys with rows of their own (the [`SCALARS`] and those summarised); any other key is
+/// shown as compact JSON at the end.
+const SHOWN: &[&str] = &[
+    "schema",
+    "name",
+    "description",
+    "agents",
+    "dim",
+    "leaders",
+    "dt",
+    "steps",
+    "runs",
+    "seed",
+    "samples_per_step",
+    "every",
+    "reports_per_decade",
+    "paths_run",
+    "paths_per_decade",
+    "follower_gain",
+    "leader_gain",
+    "allow_divergence",
+    "edges",
+    "config",
+    "weights",
+    "init_mean",
+    "init_cov",
+    "process_cov",
+    "meas_cov",
+    "estimator_specs",
+    "estimators",
+    "plots",
+];
+
+type Object = serde_json::Map<String, Value>;
+
+fn row(k: &str, what: &str, val: String) -> Vec<String> {
+    vec![k.into(), what.into(), val]
+}
+
 /// The resolved scenario (`edgekf.scenario/1`) as rows of (key, meaning, value).
 fn scenario_rows(v: &Value) -> Vec<Vec<String>> {
     let mut rows: Vec<Vec<String>> = Vec::new();
-    let o = match v.as_object() {
-        Some(o) => o,
-        None => return rows,
+    let Some(o) = v.as_object() else {
+        return rows;
     };
-    let get = |k: &str| o.get(k);
-    let mut add = |k: &str, what: &str, val: String| rows.push(vec![k.into(), what.into(), val]);
-    let known: &[(&str, &str)] = &[
-        ("schema", "format"),
-        ("name", "name"),
-        ("description", "what it reproduces"),
-        ("agents", "agents N"),
-        ("dim", "dimension D"),
-        ("leaders", "leaders"),
-        ("dt", "time step Δt [s]"),
-        ("steps", "steps"),
-        ("runs", "Monte Carlo runs"),
-        ("seed", "seed"),
-        ("samples_per_step", "measurements per step T"),
-        ("every", "report every … steps"),
-        (
-            "reports_per_decade",
-            "extra log-spaced reports per decade (first interval)",
-        ),
-        ("paths_run", "run recorded in paths.csv"),
-        (
-            "paths_per_decade",
-            "paths.csv: log-spaced reports per decade",
-        ),
-        ("follower_gain", "follower gain c"),
-        ("leader_gain", "leader gain k"),
-        ("allow_divergence", "divergence allowed"),
-    ];
-    for (k, what) in known {
-        if let Some(x) = get(k) {
-            add(k, what, cell(x));
+    for (k, what) in SCALARS {
+        if let Some(x) = o.get(*k) {
+            rows.push(row(k, what, cell(x)));
         }
     }
     if let (Some(s), Some(dt)) = (
-        get("steps").and_then(Value::as_f64),
-        get("dt").and_then(Value::as_f64),
+        o.get("steps").and_then(Value::as_f64),
+        o.get("dt").and_then(Value::as_f64),
     ) {
-        add("", "horizon [s]", fmt_num(s * dt));
+        rows.push(row("", "horizon [s]", fmt_num(s * dt)));
     }
-    if let Some(e) = get("edges").and_then(Value::as_array) {
-        add(
+    framework_rows(o, &mut rows);
+    noise_rows(o, &mut rows);
+    estimator_rows(o, &mut rows);
+    for (k, x) in o {
+        if !SHOWN.contains(&k.as_str()) {
+            rows.push(vec![k.clone(), String::new(), compact(x)]);
+        }
+    }
+    rows
+}
+
+/// `edges`, `config` and `weights`, summarised.
+fn framework_rows(o: &Object, rows: &mut Vec<Vec<String>>) {
+    if let Some(e) = o.get("edges").and_then(Value::as_array) {
+        rows.push(row(
             "edges",
             "directed edges (incidence order)",
             format!("{} directed edges ({} links)", e.len(), e.len() / 2),
-        );
+        ));
     }
-    if let Some(c) = get("config").and_then(Value::as_array) {
+    if let Some(c) = o.get("config").and_then(Value::as_array) {
         let pts: Vec<String> = c
             .iter()
             .map(|p| {
@@ -456,16 +507,16 @@ fn scenario_rows(v: &Value) -> Vec<Vec<String>> {
         } else {
             format!("{} … ({} agents)", pts[..20].join(" "), pts.len())
         };
-        add("config", "configuration p_i [m]", text);
+        rows.push(row("config", "configuration p_i [m]", text));
     }
-    if let Some(w) = get("weights").and_then(Value::as_array) {
+    if let Some(w) = o.get("weights").and_then(Value::as_array) {
         let ws: Vec<f64> = w.iter().filter_map(Value::as_f64).collect();
         let (lo, hi) = ws
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                 (a.min(*v), b.max(*v))
             });
-        add(
+        rows.push(row(
             "weights",
             "stress weights l_ij per directed edge",
             format!(
@@ -474,28 +525,33 @@ fn scenario_rows(v: &Value) -> Vec<Vec<String>> {
                 fmt_num(lo),
                 fmt_num(hi)
             ),
-        );
+        ));
     }
+}
+
+/// The initial state's and the noises' covariances (matrices in full, `meas_cov` once when
+/// every edge has the same).
+fn noise_rows(o: &Object, rows: &mut Vec<Vec<String>>) {
     for (k, what) in [
         ("init_mean", "initial mean μ [m]"),
         ("init_cov", "initial covariance P [m²]"),
         ("process_cov", "process noise Q (agent-major) [m²]"),
     ] {
-        if let Some(x) = get(k) {
+        if let Some(x) = o.get(k) {
             let val = match x.as_array() {
                 Some(a) if a.iter().all(Value::is_array) => matrix_cell(a),
                 _ => cell(x),
             };
-            add(k, what, val);
+            rows.push(row(k, what, val));
         }
     }
-    if let Some(r) = get("meas_cov").and_then(Value::as_array) {
+    if let Some(r) = o.get("meas_cov").and_then(Value::as_array) {
         let first = r.first().cloned().unwrap_or(Value::Null);
         let same = r.iter().all(|x| *x == first);
         let m = first
             .as_array()
             .map_or_else(String::new, |a| matrix_cell(a));
-        add(
+        rows.push(row(
             "meas_cov",
             "measurement noise R_ij [m²]",
             if same {
@@ -503,9 +559,13 @@ fn scenario_rows(v: &Value) -> Vec<Vec<String>> {
             } else {
                 format!("{} matrices, the first {m}", r.len())
             },
-        );
+        ));
     }
-    if let Some(specs) = get("estimator_specs").and_then(Value::as_array) {
+}
+
+/// The estimators (label: kind, options) and the figures.
+fn estimator_rows(o: &Object, rows: &mut Vec<Vec<String>>) {
+    if let Some(specs) = o.get("estimator_specs").and_then(Value::as_array) {
         let txt: Vec<String> = specs
             .iter()
             .map(|s| {
@@ -522,57 +582,21 @@ fn scenario_rows(v: &Value) -> Vec<Vec<String>> {
                 format!("{label}: {}", rest.join(", "))
             })
             .collect();
-        add(
+        rows.push(row(
             "estimator_specs",
             "estimators (label: kind, options)",
             txt.join("; "),
-        );
-    } else if let Some(e) = get("estimators") {
-        add("estimators", "estimators", compact(e));
+        ));
+    } else if let Some(e) = o.get("estimators") {
+        rows.push(row("estimators", "estimators", compact(e)));
     }
-    if let Some(p) = get("plots").and_then(Value::as_array) {
+    if let Some(p) = o.get("plots").and_then(Value::as_array) {
         let files: Vec<String> = p
             .iter()
             .filter_map(|x| x.get("file").and_then(Value::as_str).map(String::from))
             .collect();
-        add("plots", "figures", files.join(", "));
+        rows.push(row("plots", "figures", files.join(", ")));
     }
-    let shown = [
-        "schema",
-        "name",
-        "description",
-        "agents",
-        "dim",
-        "leaders",
-        "dt",
-        "steps",
-        "runs",
-        "seed",
-        "samples_per_step",
-        "every",
-        "reports_per_decade",
-        "paths_run",
-        "paths_per_decade",
-        "follower_gain",
-        "leader_gain",
-        "allow_divergence",
-        "edges",
-        "config",
-        "weights",
-        "init_mean",
-        "init_cov",
-        "process_cov",
-        "meas_cov",
-        "estimator_specs",
-        "estimators",
-        "plots",
-    ];
-    for (k, x) in o {
-        if !shown.contains(&k.as_str()) {
-            rows.push(vec![k.clone(), String::new(), compact(x)]);
-        }
-    }
-    rows
 }
 
 /// A SLAM scenario (`edgekf.slam/1`) as rows of (key, value).
@@ -794,6 +818,22 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     let reps = reproductions_of(dir, name);
     let mut o = String::new();
     page_start(&format!("edgekf — {name}"), &mut o);
+    page_header(&mut o, name, sc, &reps);
+    figures_section(&mut o, dir, &reps, slam)?;
+    summary_section(&mut o, dir, sc, slam)?;
+    let claims = read_claims(dir)?;
+    o.push_str(&claims_section(claims.as_deref(), "claims"));
+    scenario_section(&mut o, sc, slam);
+    provenance_section(&mut o, dir, sc);
+    files_section(&mut o, dir)?;
+    page_end(&mut o);
+    let out = dir.join("report.html");
+    write_atomic(&out, o.as_bytes())?;
+    Ok(out)
+}
+
+/// The page's title, description, reproductions and table of contents.
+fn page_header(o: &mut String, name: &str, sc: &Value, reps: &[&registry::Entry]) {
     let _ = writeln!(o, "<header><h1>{}</h1>", esc(name));
     if let Some(d) = sc.get("description").and_then(Value::as_str) {
         let _ = writeln!(o, "<p>{}</p>", esc(d));
@@ -811,11 +851,18 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
         );
     }
     o.push_str("<nav><a href=\"#figures\">Figures</a><a href=\"#summary\">Steady state</a><a href=\"#claims\">Claims</a><a href=\"#scenario\">Scenario</a><a href=\"#provenance\">Provenance</a><a href=\"#files\">Files</a></nav></header>\n");
+}
 
-    // Figures.
+/// The figures of each reproduction, then any other figure in the directory.
+fn figures_section(
+    o: &mut String,
+    dir: &Path,
+    reps: &[&registry::Entry],
+    slam: bool,
+) -> Result<()> {
     o.push_str("<h2 id=\"figures\">Figures</h2>\n");
     let mut drawn: Vec<String> = Vec::new();
-    for e in &reps {
+    for e in reps {
         let _ = writeln!(
             o,
             "<h3 id=\"{}\"><code>{}</code> — {}</h3>",
@@ -852,8 +899,12 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     if drawn.is_empty() && others.is_empty() {
         o.push_str("<p class=\"note\">No figures in this directory.</p>\n");
     }
+    Ok(())
+}
 
-    // Steady state.
+/// The steady-state table of the estimators (and their divergences), or a SLAM run's final
+/// errors.
+fn summary_section(o: &mut String, dir: &Path, sc: &Value, slam: bool) -> Result<()> {
     o.push_str("<h2 id=\"summary\">Steady state</h2>\n");
     if slam {
         let (head, rows) = slam_summary(dir)?;
@@ -861,40 +912,39 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
             "<p>Final errors of the run (and the peak of the total estimation error).</p>\n",
         );
         o.push_str(&table("summary", &head, &rows, &|c| c > 0));
-    } else {
-        let s = summary_from_files(dir, sc)?;
-        let rows = summary::cells(&s);
-        let _ = writeln!(
-            o,
-            "<p>Per estimator: each metric's mean over the runs, averaged over the reports from \
-             {} to {} s (the second half); mean ε² / cov_trace over the same window (1 for a \
-             filter exact for its own model); the Procrustes error over the last sixth. {} run(s). \
-             <code>edgekf run … --json</code> prints the same numbers.</p>",
-            fmt_num(s.window[0]),
-            fmt_num(s.window[1]),
-            s.runs
-        );
-        o.push_str(&table("summary", &rows[0], &rows[1..], &|c| c > 1));
-        for l in &s.estimators {
-            if let Some(d) = &l.diverged {
-                let _ = writeln!(
-                    o,
-                    "<p class=\"note\">{} diverged at step {} (t = {} s, run {}): {}</p>",
-                    esc(&l.label),
-                    d.step,
-                    fmt_num(d.time),
-                    d.run,
-                    esc(&d.cause)
-                );
-            }
+        return Ok(());
+    }
+    let s = summary_from_files(dir, sc)?;
+    let rows = summary::cells(&s);
+    let _ = writeln!(
+        o,
+        "<p>Per estimator: each metric's mean over the runs, averaged over the reports from \
+         {} to {} s (the second half); mean ε² / cov_trace over the same window (1 for a \
+         filter exact for its own model); the Procrustes error over the last sixth. {} run(s). \
+         <code>edgekf run … --json</code> prints the same numbers.</p>",
+        fmt_num(s.window[0]),
+        fmt_num(s.window[1]),
+        s.runs
+    );
+    o.push_str(&table("summary", &rows[0], &rows[1..], &|c| c > 1));
+    for l in &s.estimators {
+        if let Some(d) = &l.diverged {
+            let _ = writeln!(
+                o,
+                "<p class=\"note\">{} diverged at step {} (t = {} s, run {}): {}</p>",
+                esc(&l.label),
+                d.step,
+                fmt_num(d.time),
+                d.run,
+                esc(&d.cause)
+            );
         }
     }
+    Ok(())
+}
 
-    // Claims.
-    let claims = read_claims(dir)?;
-    o.push_str(&claims_section(claims.as_deref(), "claims"));
-
-    // Scenario.
+/// The resolved scenario as a table.
+fn scenario_section(o: &mut String, sc: &Value, slam: bool) {
     o.push_str("<h2 id=\"scenario\">Scenario (resolved)</h2>\n<p class=\"note\">From <code>scenario.json</code>; <code>edgekf run scenario.json --out DIR</code> re-runs it to the same bits.</p>\n");
     let rows = if slam {
         slam_rows(sc)
@@ -907,8 +957,10 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
         &rows,
         &|_| false,
     ));
+}
 
-    // Provenance.
+/// What ran the study (`provenance.json`), its seed, and what wrote the page.
+fn provenance_section(o: &mut String, dir: &Path, sc: &Value) {
     o.push_str("<h2 id=\"provenance\">Provenance</h2>\n<dl>\n");
     let prov: Option<Provenance> = fs::read_to_string(dir.join("provenance.json"))
         .ok()
@@ -941,8 +993,10 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
         esc(&program()),
         esc(&shell_line(&std::env::args().collect::<Vec<_>>()))
     );
+}
 
-    // Files.
+/// The files beside the page, with their sizes.
+fn files_section(o: &mut String, dir: &Path) -> Result<()> {
     o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n<ul>\n");
     let mut files: Vec<(String, u64)> = fs::read_dir(dir)?
         .filter_map(|d| d.ok())
@@ -962,10 +1016,7 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
         );
     }
     o.push_str("</ul>\n");
-    page_end(&mut o);
-    let out = dir.join("report.html");
-    write_atomic(&out, o.as_bytes())?;
-    Ok(out)
+    Ok(())
 }
 
 fn human(n: u64) -> String {

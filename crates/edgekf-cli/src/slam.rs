@@ -52,7 +52,7 @@ fn summary_json(sc: &Scenario, tr: &Trajectory) -> String {
     let x = &tr.x[k];
     let peak = (0..=k).map(|j| tr.total_error(j)).fold(0.0, f64::max);
     let v = serde_json::json!({
-        "scenario": sc.name,
+        "scenario": sc.name(),
         "time": t,
         "est_err_total": tr.total_error(k),
         "est_err_total_peak": peak,
@@ -87,12 +87,12 @@ fn parse(source: &str, text: &str) -> Result<ScenarioSpec> {
 
 /// The resolved scenario as JSON, checked to parse back to the identical spec (so a re-run reproduces the CSVs).
 fn resolved_json(sc: &Scenario) -> Result<String> {
-    let mut json = edgekf_io::to_json_pretty(&sc.resolved)
+    let mut json = edgekf_io::to_json_pretty(sc.resolved())
         .context("cannot serialise the resolved scenario")?;
     json.push('\n');
     let back: ScenarioSpec =
         serde_json::from_str(&json).context("the resolved scenario does not parse back")?;
-    if back != sc.resolved {
+    if &back != sc.resolved() {
         bail!(
             "scenario.json would not reproduce the run: a number does not survive the JSON round trip \
              (enable serde_json's `float_roundtrip` feature)"
@@ -194,15 +194,15 @@ fn design_report(source: &str, sc: &Scenario) -> String {
     let _ = writeln!(
         s,
         "{} ({source}): n = {n} robots, m = {m} landmarks, state dimension N = {}",
-        sc.name,
+        sc.name(),
         2 * (n + m)
     );
     let _ = writeln!(
         s,
         "CARE (eq. 20) with the design weight Z_iᵀ Q Z_i, Q = {} I, R_i = r_i I:",
-        sc.q
+        sc.q()
     );
-    for (i, ob) in sc.observers.iter().enumerate() {
+    for (i, ob) in sc.observers().iter().enumerate() {
         let c = &ob.care;
         let _ = writeln!(
             s,
@@ -218,8 +218,8 @@ fn design_report(source: &str, sc: &Scenario) -> String {
         );
     }
     let _ = writeln!(s, "CARE as printed (Ḡ_i = Z_iᵀ G, G = [I_2n; 0]):");
-    for (i, ob) in sc.observers.iter().enumerate() {
-        let pc = printed_care(&sc.model, ob, sc.q);
+    for (i, ob) in sc.observers().iter().enumerate() {
+        let pc = printed_care(sc.model(), ob, sc.q());
         let verdict = match &pc.result {
             Ok(_) => "has a stabilising solution".to_string(),
             Err(e) => format!("{e}"),
@@ -288,11 +288,11 @@ fn design_report(source: &str, sc: &Scenario) -> String {
     let _ = writeln!(
         s,
         "RK4: h = {} s, {} steps, output every {} steps; closed-loop spectral radius ρ = {:.3} /s, hρ = {:.2e}",
-        sc.step,
-        sc.steps,
-        sc.output_stride,
+        sc.step(),
+        sc.steps(),
+        sc.output_stride(),
         rho,
-        sc.step * rho
+        sc.step() * rho
     );
     s
 }

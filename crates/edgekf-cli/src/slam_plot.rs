@@ -90,7 +90,7 @@ pub fn paths(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
         );
     }
     let fig = Figure::single(
-        format!("{}: robot paths and estimated landmark tracks", sc.name),
+        format!("{}: robot paths and estimated landmark tracks", sc.name()),
         p,
     )
     .with_size(1000, 900);
@@ -106,7 +106,7 @@ pub fn errors(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
     let n = sc.n();
     let t = tr.times.clone();
     let mut p = Panel::new(Axis::linear("time t", "s").tight(), Axis::log("error", "m"));
-    if let Some(d) = &sc.disturbance {
+    if let Some(d) = sc.disturbance() {
         p.shades.push(Shade {
             from: d.start,
             to: d.end,
@@ -144,7 +144,7 @@ pub fn errors(path: &Path, sc: &Scenario, tr: &Trajectory) -> Result<()> {
         ),
     );
     let fig = Figure::single(
-        format!("{}: estimation, formation and centroid errors", sc.name),
+        format!("{}: estimation, formation and centroid errors", sc.name()),
         p,
     )
     .with_size(1000, 650);

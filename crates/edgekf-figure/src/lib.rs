@@ -45,7 +45,6 @@ mod render;
 pub mod text;
 pub mod ticks;
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use coincide::CoincideGroup;
@@ -61,14 +60,15 @@ pub use ticks::Tick;
 /// [`plot_garkf`] (with `extra`: a sweep's results, a companion run), the rest to [`plot`].
 ///
 /// # Errors
-/// When a figure cannot be written, or a GA-RKF figure lacks the data it needs.
+/// [`StudyFigureError`] when a figure cannot be written, or a GA-RKF figure lacks the data it
+/// needs.
 pub fn render_study(
     mut path_of: impl FnMut(&str) -> PathBuf,
     sc: &edgekf::scenario::Scenario,
     res: &edgekf::sim::Results,
     only: Option<&[&str]>,
     extra: &plot_garkf::Extra<'_>,
-) -> anyhow::Result<()> {
+) -> Result<(), StudyFigureError> {
     for p in sc.plots() {
         if only.is_none_or(|want| want.contains(&p.file())) {
             let path = path_of(&format!("{}.png", p.file()));
@@ -83,11 +83,13 @@ pub fn render_study(
 }
 
 /// Errors of writing a figure.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum FigureError {
     /// The PNG could not be encoded or written.
+    #[error("cannot write the figure: {0}")]
     Encode(String),
     /// A directory or file operation failed.
+    #[error("{}: {source}", path.display())]
     Io {
         /// The path involved.
         path: PathBuf,
@@ -96,22 +98,40 @@ pub enum FigureError {
     },
 }
 
-impl fmt::Display for FigureError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            FigureError::Encode(e) => write!(f, "cannot write the figure: {e}"),
-            FigureError::Io { path, source } => write!(f, "{}: {source}", path.display()),
-        }
-    }
-}
-
-impl std::error::Error for FigureError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            FigureError::Io { source, .. } => Some(source),
-            FigureError::Encode(_) => None,
-        }
-    }
+/// Why a figure of a study could not be drawn ([`render_study`], [`plot::render`],
+/// [`plot_garkf::render`]).
+#[derive(Debug, thiserror::Error)]
+pub enum StudyFigureError {
+    /// A figure of [`plot`] could not be written.
+    #[error("cannot draw {}", path.display())]
+    Draw {
+        /// The PNG.
+        path: PathBuf,
+        /// Why.
+        source: FigureError,
+    },
+    /// A figure of [`plot_garkf`] could not be written.
+    #[error(transparent)]
+    Write(#[from] FigureError),
+    /// [`plot_garkf::render`] was given a figure that is not one of its own.
+    #[error("{0} is not a GA-RKF figure")]
+    NotGarkf(String),
+    /// A panel figure draws the sweep's values (`columns` or `series` = `"points"`), but there
+    /// are no sweep results.
+    #[error("this figure draws the sweep's values, but there is no sweep")]
+    NoSweep,
+    /// A summary figure without the sweep's results.
+    #[error("a summary figure needs the sweep's results")]
+    SummaryWithoutSweep,
+    /// The indicator figure names an estimator the scenario does not have.
+    #[error("no estimator `{0}`")]
+    NoEstimator(String),
+    /// The indicator figure's bound is undefined: no agent has a feasible RAL.
+    #[error("no agent has a feasible RAL on the nominal graph")]
+    NoFeasibleRal,
+    /// The indicator figure's estimator reports no ψ or δ.
+    #[error("`{0}` reports no ψ or δ")]
+    NoPsiOrDelta(String),
 }
 
 /// Axis scale.

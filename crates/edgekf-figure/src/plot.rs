@@ -16,13 +16,12 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::{Outcome, Results};
 
 use crate::{
     coincide, palette, Axis, CoincideGroup, Curve, Dash, Figure, HAlign, Inset, Label, LegendMode,
-    Marker, Panel, RenderReport, Shape, Style, VAlign,
+    Marker, Panel, RenderReport, Shape, StudyFigureError, Style, VAlign,
 };
 
 /// Curves closer than this many pixels (vertically) look like one line.
@@ -188,11 +187,20 @@ fn warn(path: &Path, rep: &RenderReport) {
 /// Renders one figure request into `path` (a PNG; the caller stages it under a temporary name).
 /// Estimators without data for the figure (e.g. diverged before its first point) are left out,
 /// and the figure says so.
-pub fn render(path: &Path, spec: &PlotSpec, sc: &Scenario, res: &Results) -> Result<()> {
+///
+/// # Errors
+/// [`StudyFigureError::Draw`] when the PNG cannot be written.
+pub fn render(
+    path: &Path,
+    spec: &PlotSpec,
+    sc: &Scenario,
+    res: &Results,
+) -> Result<(), StudyFigureError> {
     let fig = figure(spec, sc, res);
-    let rep = fig
-        .render(path)
-        .with_context(|| format!("cannot draw {}", path.display()))?;
+    let rep = fig.render(path).map_err(|source| StudyFigureError::Draw {
+        path: path.to_path_buf(),
+        source,
+    })?;
     warn(path, &rep);
     Ok(())
 }

@@ -11,12 +11,11 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Result};
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::sweep::SweepResults;
 use edgekf::sim::Results;
 
-use crate::{Axis, Curve, Dash, Figure, Marker, Panel, Shape, Style};
+use crate::{Axis, Curve, Dash, Figure, Marker, Panel, Shape, StudyFigureError, Style};
 
 /// What a figure may draw from besides the scenario's own results.
 #[derive(Default)]
@@ -135,13 +134,17 @@ fn target_trace(sc: &Scenario, res: &Results, window: Option<[f64; 2]>) -> Optio
 }
 
 /// Renders one of this module's figures into `path`.
+///
+/// # Errors
+/// [`StudyFigureError`] when the figure is not one of this module's, lacks the data it needs,
+/// or cannot be written.
 pub fn render(
     path: &Path,
     spec: &PlotSpec,
     sc: &Scenario,
     res: &Results,
     extra: &Extra<'_>,
-) -> Result<()> {
+) -> Result<(), StudyFigureError> {
     let all: Vec<String> = res.labels().iter().map(|s| s.to_string()).collect();
     let labels: Vec<String> = spec.estimators().map(<[String]>::to_vec).unwrap_or(all);
     let fig = match spec {
@@ -171,7 +174,7 @@ pub fn render(
             window,
             ..
         } => indicator(sc, res, title, estimator, *window)?,
-        _ => bail!("{} is not a GA-RKF figure", spec.file()),
+        _ => return Err(StudyFigureError::NotGarkf(spec.file().to_string())),
     };
     fig.render(path)?;
     Ok(())
@@ -191,11 +194,11 @@ fn panels(
     tt: bool,
     window: Option<[f64; 2]>,
     labels: &[String],
-) -> Result<Figure> {
+) -> Result<Figure, StudyFigureError> {
     let sweep = extra.sweep;
     let cols: Vec<(String, &Results)> = if columns == "points" {
         let Some(sw) = sweep else {
-            bail!("this figure draws the sweep's values, but there is no sweep")
+            return Err(StudyFigureError::NoSweep);
         };
         sw.points
             .iter()
@@ -232,7 +235,7 @@ fn panels(
             }
             let sources: Vec<(String, &Results)> = if series == "points" {
                 let Some(sw) = sweep else {
-                    bail!("this figure draws the sweep's values, but there is no sweep")
+                    return Err(StudyFigureError::NoSweep);
                 };
                 sw.points
                     .iter()
@@ -304,9 +307,9 @@ fn summary(
     x_label: &str,
     log_y: bool,
     labels: &[String],
-) -> Result<Figure> {
+) -> Result<Figure, StudyFigureError> {
     let Some(sw) = extra.sweep else {
-        bail!("a summary figure needs the sweep's results")
+        return Err(StudyFigureError::SummaryWithoutSweep);
     };
     let share = metric.ends_with("_share");
     let (yl, yu) = metric_axis(metric);
@@ -437,20 +440,20 @@ fn indicator(
     title: &str,
     label: &str,
     window: Option<[f64; 2]>,
-) -> Result<Figure> {
+) -> Result<Figure, StudyFigureError> {
     let def = sc
         .estimators()
         .iter()
         .find(|d| d.label() == label)
-        .ok_or_else(|| anyhow::anyhow!("no estimator `{label}`"))?;
+        .ok_or_else(|| StudyFigureError::NoEstimator(label.to_string()))?;
     let (c, b) = sc
         .theorem1_means(def.samples())
-        .ok_or_else(|| anyhow::anyhow!("no agent has a feasible RAL on the nominal graph"))?;
+        .ok_or(StudyFigureError::NoFeasibleRal)?;
     let (Some(psi), Some(delta)) = (
         res.series(label, "psi"),
         res.series(label, "tracking_error"),
     ) else {
-        bail!("`{label}` reports no ψ or δ")
+        return Err(StudyFigureError::NoPsiOrDelta(label.to_string()));
     };
     let t = times(res);
     let idx: Vec<usize> = in_window(&t, window)

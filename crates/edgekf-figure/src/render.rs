@@ -121,19 +121,45 @@ fn prepare<'a>(
     styles: Option<(Vec<Style>, Vec<Rgb>)>,
 ) -> Prep<'a> {
     let (xs, ys) = (x_axis.scale, y_axis.scale);
-    let mut reports = Vec::with_capacity(p.curves.len());
     let (mut xv, mut yv) = (Vec::new(), Vec::new());
-    let in_window = |x: f64| window.is_none_or(|(a, b)| x >= a.min(b) && x <= a.max(b));
-    // On a log y axis, a ±1σ band's lower edge is often far below its mean (σ ≈ mean) or ≤ 0;
-    // the axis is not stretched past one decade below the lowest curve value to show it (the
-    // band then runs off the bottom), so the curves keep the height of the plot.
-    let band_floor = match ys {
+    let reports = sanitise(&p, (xs, ys), window, &mut xv, &mut yv);
+    let x_fixed = window.or(x_axis.range);
+    let x = axis_range(&mut xv, xs, x_fixed, x_axis.margin);
+    let y = axis_range(&mut yv, ys, y_axis.range, y_axis.margin);
+    drop((xv, yv));
+    let (styles, colours, groups) = match styles {
+        Some((s, c)) => (s, c, Vec::new()),
+        None => resolve_styles(&p, ys, &y),
+    };
+    Prep {
+        src: p,
+        x_axis,
+        y_axis,
+        styles,
+        colours,
+        x,
+        y,
+        reports,
+        groups,
+    }
+}
+
+/// Whether `x` is inside the window (no window: everywhere).
+fn in_window(window: Option<(f64, f64)>, x: f64) -> bool {
+    window.is_none_or(|(a, b)| x >= a.min(b) && x <= a.max(b))
+}
+
+/// On a log y axis, a ±1σ band's lower edge is often far below its mean (σ ≈ mean) or ≤ 0;
+/// the axis is not stretched past one decade below the lowest curve value to show it (the
+/// band then runs off the bottom), so the curves keep the height of the plot.
+fn band_floor(p: &Source<'_>, (xs, ys): (Scale, Scale), window: Option<(f64, f64)>) -> f64 {
+    match ys {
         Scale::Log => {
             let m = p
                 .curves
                 .iter()
                 .flat_map(|c| c.x.iter().zip(&c.y).take(n_points(c)))
-                .filter(|(x, y)| usable(**x, xs) && usable(**y, ys) && in_window(**x))
+                .filter(|(x, y)| usable(**x, xs) && usable(**y, ys) && in_window(window, **x))
                 .map(|(_, y)| *y)
                 .fold(f64::INFINITY, f64::min);
             if m.is_finite() {
@@ -143,7 +169,21 @@ fn prepare<'a>(
             }
         }
         Scale::Linear => f64::NEG_INFINITY,
-    };
+    }
+}
+
+/// The values that span the axes (`xv`, `yv`: usable points, band edges and shades in the
+/// window) and each curve's report of what was left out.
+fn sanitise(
+    p: &Source<'_>,
+    (xs, ys): (Scale, Scale),
+    window: Option<(f64, f64)>,
+    xv: &mut Vec<f64>,
+    yv: &mut Vec<f64>,
+) -> Vec<CurveReport> {
+    let in_window = |x: f64| in_window(window, x);
+    let band_floor = band_floor(p, (xs, ys), window);
+    let mut reports = Vec::with_capacity(p.curves.len());
     for c in p.curves {
         let n = n_points(c);
         let mut r = CurveReport {
@@ -194,80 +234,72 @@ fn prepare<'a>(
             }
         }
     }
-    let x_fixed = window.or(x_axis.range);
-    let x = axis_range(&mut xv, xs, x_fixed, x_axis.margin);
-    let y = axis_range(&mut yv, ys, y_axis.range, y_axis.margin);
-    drop((xv, yv));
+    reports
+}
 
-    let (styles, colours, groups) = match styles {
-        Some((s, c)) => (s, c, Vec::new()),
-        None => {
-            let mut auto = 0;
-            let mut styles: Vec<Style> = p.curves.iter().map(|c| c.style.clone()).collect();
-            let colours: Vec<Rgb> = styles
-                .iter()
-                .map(|s| {
-                    s.colour.unwrap_or_else(|| {
-                        auto += 1;
-                        palette::series(auto - 1)
-                    })
-                })
-                .collect();
-            let groups = match p.coincide {
-                Some(tol) if tol > 0.0 && tol.is_finite() => {
-                    // Only curves with a label of their own: a family sharing one label (landmark tracks,
-                    // links) is one legend entry and is not compared.
-                    let mut count = std::collections::HashMap::new();
-                    for c in p.curves {
-                        *count.entry(c.label.as_str()).or_insert(0usize) += 1;
-                    }
-                    let series: Vec<Option<Series>> = p
-                        .curves
-                        .iter()
-                        .map(|c| {
-                            let n = n_points(c);
-                            let eligible = c.style.dash.is_some()
-                                && !c.label.is_empty()
-                                && count[c.label.as_str()] == 1
-                                && n >= 2;
-                            eligible.then(|| Series {
-                                x: &c.x[..n],
-                                y: &c.y[..n],
-                            })
-                        })
-                        .collect();
-                    let labels: Vec<String> = p.curves.iter().map(|c| c.label.clone()).collect();
-                    coincide::find(&series, &labels, tol, ys, y.hi - y.lo)
-                }
-                _ => Vec::new(),
-            };
-            for g in &groups {
-                let len = g.members.len() as f64;
-                for (m, &i) in g.members.iter().enumerate() {
-                    let s = &mut styles[i];
-                    s.dash = Some(Dash::ALL[m % Dash::ALL.len()]);
-                    s.marker = Some(
-                        Marker::new(GROUP_SHAPES[m % GROUP_SHAPES.len()], 7.0).spaced(
-                            GROUP_MARKER_EVERY,
-                            GROUP_MARKER_EVERY * (m as f64 + 0.5) / len,
-                        ),
-                    );
-                }
-            }
-            (styles, colours, groups)
-        }
+/// The curves' styles and colours (the palette in order for curves without a colour), and the
+/// groups of coinciding curves, whose members get distinct dashes and markers.
+fn resolve_styles(
+    p: &Source<'_>,
+    ys: Scale,
+    y: &AxisReport,
+) -> (Vec<Style>, Vec<Rgb>, Vec<super::CoincideGroup>) {
+    let mut auto = 0;
+    let mut styles: Vec<Style> = p.curves.iter().map(|c| c.style.clone()).collect();
+    let colours: Vec<Rgb> = styles
+        .iter()
+        .map(|s| {
+            s.colour.unwrap_or_else(|| {
+                auto += 1;
+                palette::series(auto - 1)
+            })
+        })
+        .collect();
+    let groups = match p.coincide {
+        Some(tol) if tol > 0.0 && tol.is_finite() => coinciding(p, tol, ys, y),
+        _ => Vec::new(),
     };
-    Prep {
-        src: p,
-        x_axis,
-        y_axis,
-        styles,
-        colours,
-        x,
-        y,
-        reports,
-        groups,
+    for g in &groups {
+        let len = g.members.len() as f64;
+        for (m, &i) in g.members.iter().enumerate() {
+            let s = &mut styles[i];
+            s.dash = Some(Dash::ALL[m % Dash::ALL.len()]);
+            s.marker = Some(
+                Marker::new(GROUP_SHAPES[m % GROUP_SHAPES.len()], 7.0).spaced(
+                    GROUP_MARKER_EVERY,
+                    GROUP_MARKER_EVERY * (m as f64 + 0.5) / len,
+                ),
+            );
+        }
     }
+    (styles, colours, groups)
+}
+
+/// The groups of curves that coincide within `tol` of the y range. Only curves with a label of
+/// their own: a family sharing one label (landmark tracks, links) is one legend entry and is
+/// not compared.
+fn coinciding(p: &Source<'_>, tol: f64, ys: Scale, y: &AxisReport) -> Vec<super::CoincideGroup> {
+    let mut count = std::collections::HashMap::new();
+    for c in p.curves {
+        *count.entry(c.label.as_str()).or_insert(0usize) += 1;
+    }
+    let series: Vec<Option<Series>> = p
+        .curves
+        .iter()
+        .map(|c| {
+            let n = n_points(c);
+            let eligible = c.style.dash.is_some()
+                && !c.label.is_empty()
+                && count[c.label.as_str()] == 1
+                && n >= 2;
+            eligible.then(|| Series {
+                x: &c.x[..n],
+                y: &c.y[..n],
+            })
+        })
+        .collect();
+    let labels: Vec<String> = p.curves.iter().map(|c| c.label.clone()).collect();
+    coincide::find(&series, &labels, tol, ys, y.hi - y.lo)
 }
 
 /// Data → pixel along one axis.
@@ -504,42 +536,13 @@ pub(super) fn figure(fig: &Figure) -> (Canvas, RenderReport) {
     let h = fig.size.1.clamp(90, 12_000);
     let mut canvas = Canvas::new(w, h);
     let f = &NORMAL;
-    let mut top = 8.0;
-    if !fig.title.is_empty() {
-        let r = put_text(
-            &mut canvas,
-            &fig.title,
-            f.title,
-            (f64::from(w) / 2.0, top),
-            HAlign::Center,
-            VAlign::Top,
-            Rotation::None,
-            Rgb::BLACK,
-            false,
-        );
-        top = r.y1 + 8.0;
-    }
+    let top = draw_title(&mut canvas, &fig.title, f, w);
     let preps: Vec<Prep> = fig
         .panels
         .iter()
         .map(|p| prepare(p.into(), p.x_axis.clone(), p.y_axis.clone(), None, None))
         .collect();
-    // Notes: the caller's, then what the reader should know about the data.
-    let mut notes = fig.notes.clone();
-    if fig.auto_notes {
-        let many = preps.len() > 1;
-        for p in &preps {
-            let rep = panel_report(p, None);
-            for wmsg in rep.warnings() {
-                notes.push(if many && !p.src.title.is_empty() {
-                    format!("{}: {wmsg}", text::plain(p.src.title))
-                } else {
-                    format!("Note: {wmsg}.")
-                });
-            }
-        }
-    }
-    let note_lines: Vec<String> = notes
+    let note_lines: Vec<String> = notes(fig, &preps)
         .iter()
         .flat_map(|n| wrap(n, f.note, f64::from(w) - 40.0))
         .collect();
@@ -555,38 +558,7 @@ pub(super) fn figure(fig: &Figure) -> (Canvas, RenderReport) {
         f64::from(w) - 6.0,
         (f64::from(h) - 6.0 - notes_h).max(top + 20.0),
     );
-    let cols = fig.columns.max(1).min(fig.panels.len().max(1));
-    let rows = fig.panels.len().div_ceil(cols).max(1);
-    let (cw, ch) = (grid.width() / cols as f64, grid.height() / rows as f64);
-    let area = |k: usize| {
-        let (r, c) = (k / cols, k % cols);
-        PxRect::new(
-            grid.x0 + cw * c as f64,
-            grid.y0 + ch * r as f64,
-            grid.x0 + cw * (c as f64 + 1.0),
-            grid.y0 + ch * (r as f64 + 1.0),
-        )
-    };
-    // Panels of one grid column share the left edge of their plot areas.
-    let mut left = vec![0.0f64; cols];
-    if rows > 1 {
-        for (k, p) in preps.iter().enumerate() {
-            let a = area(k);
-            let lay = layout(a, p, f, 0.0, false, 0.0);
-            left[k % cols] = left[k % cols].max(lay.plot.x0 - a.x0);
-        }
-    }
-    let mut panels = Vec::with_capacity(preps.len());
-    for (k, p) in preps.iter().enumerate() {
-        panels.push(draw_panel(
-            &mut canvas,
-            area(k),
-            p,
-            f,
-            false,
-            left[k % cols],
-        ));
-    }
+    let panels = draw_grid(&mut canvas, grid, fig.columns, &preps, f);
     let mut y = grid.y1 + 6.0;
     for l in &note_lines {
         put_text(
@@ -609,6 +581,81 @@ pub(super) fn figure(fig: &Figure) -> (Canvas, RenderReport) {
             panels,
         },
     )
+}
+
+/// Draws the figure's title (if any) centred at the top; returns the y under it.
+fn draw_title(canvas: &mut Canvas, title: &str, f: &Fonts, w: u32) -> f64 {
+    let mut top = 8.0;
+    if !title.is_empty() {
+        let r = put_text(
+            canvas,
+            title,
+            f.title,
+            (f64::from(w) / 2.0, top),
+            HAlign::Center,
+            VAlign::Top,
+            Rotation::None,
+            Rgb::BLACK,
+            false,
+        );
+        top = r.y1 + 8.0;
+    }
+    top
+}
+
+/// The notes under the figure: the caller's, then what the reader should know about the data.
+fn notes(fig: &Figure, preps: &[Prep]) -> Vec<String> {
+    let mut notes = fig.notes.clone();
+    if fig.auto_notes {
+        let many = preps.len() > 1;
+        for p in preps {
+            let rep = panel_report(p, None);
+            for wmsg in rep.warnings() {
+                notes.push(if many && !p.src.title.is_empty() {
+                    format!("{}: {wmsg}", text::plain(p.src.title))
+                } else {
+                    format!("Note: {wmsg}.")
+                });
+            }
+        }
+    }
+    notes
+}
+
+/// Draws the panels in a grid of `columns` columns filling `grid`; returns their reports.
+fn draw_grid(
+    canvas: &mut Canvas,
+    grid: PxRect,
+    columns: usize,
+    preps: &[Prep],
+    f: &Fonts,
+) -> Vec<PanelReport> {
+    let cols = columns.max(1).min(preps.len().max(1));
+    let rows = preps.len().div_ceil(cols).max(1);
+    let (cw, ch) = (grid.width() / cols as f64, grid.height() / rows as f64);
+    let area = |k: usize| {
+        let (r, c) = (k / cols, k % cols);
+        PxRect::new(
+            grid.x0 + cw * c as f64,
+            grid.y0 + ch * r as f64,
+            grid.x0 + cw * (c as f64 + 1.0),
+            grid.y0 + ch * (r as f64 + 1.0),
+        )
+    };
+    // Panels of one grid column share the left edge of their plot areas.
+    let mut left = vec![0.0f64; cols];
+    if rows > 1 {
+        for (k, p) in preps.iter().enumerate() {
+            let a = area(k);
+            let lay = layout(a, p, f, 0.0, false, 0.0);
+            left[k % cols] = left[k % cols].max(lay.plot.x0 - a.x0);
+        }
+    }
+    let mut panels = Vec::with_capacity(preps.len());
+    for (k, p) in preps.iter().enumerate() {
+        panels.push(draw_panel(canvas, area(k), p, f, false, left[k % cols]));
+    }
+    panels
 }
 
 fn panel_report(p: &Prep, lay: Option<&Layout>) -> PanelReport {
@@ -810,39 +857,13 @@ fn draw_panel(
     let gap = 2.0 * legend::INSET_PX;
     let inset_out_w = (area.width() * 0.3).clamp(200.0, 380.0);
     for pass in 0..3 {
-        canvas.fill_rect(area, Rgb::WHITE, 1.0);
         let column = match (legend_out, inset_out) {
             (false, false) => 0.0,
             (true, false) => lw + gap,
             (false, true) => inset_out_w + gap,
             (true, true) => lw.max(inset_out_w) + gap,
         };
-        let lay = layout(area, p, f, column, compact, min_left);
-        let mut occ = Occupancy::new(lay.plot);
-        let texts = draw_axes(canvas, area, p, &lay, f, compact);
-        let vertices = draw_data(canvas, p, &lay, &mut occ);
-        canvas.frame(lay.plot, palette::AXIS);
-        let mut rep = panel_report(p, Some(&lay));
-        rep.texts = texts;
-        for (r, v) in rep.curves.iter_mut().zip(vertices) {
-            r.vertices_drawn = v;
-        }
-        if p.x.empty || p.y.empty {
-            put_text(
-                canvas,
-                "no finite data",
-                f.axis,
-                (
-                    (lay.plot.x0 + lay.plot.x1) / 2.0,
-                    (lay.plot.y0 + lay.plot.y1) / 2.0,
-                ),
-                HAlign::Center,
-                VAlign::Middle,
-                Rotation::None,
-                palette::NOTE,
-                false,
-            );
-        }
+        let (lay, mut occ, mut rep) = draw_plot(canvas, area, p, f, (compact, min_left), column);
         // The right column's next free y.
         let col_x = lay.plot.x1 + gap;
         let mut col_y = lay.plot.y0;
@@ -851,22 +872,10 @@ fn draw_panel(
         }
         if let Some(inset) = inset {
             let placed = if inset_out {
-                let ih = (inset_out_w * 0.75).min(lay.plot.y1 - col_y).max(0.0);
-                (ih >= 80.0).then(|| {
-                    (
-                        Placement::OutsideRight,
-                        PxRect::new(col_x, col_y, col_x + inset_out_w, col_y + ih),
-                    )
-                })
+                outside_inset(&lay, (col_x, col_y), inset_out_w)
             } else {
-                let iw = (lay.plot.width() * inset.size.0.clamp(0.1, 0.9))
-                    .max(170.0)
-                    .min(lay.plot.width() - 20.0);
-                let ih = (lay.plot.height() * inset.size.1.clamp(0.1, 0.9))
-                    .max(120.0)
-                    .min(lay.plot.height() - 20.0);
-                match legend::choose(lay.plot, iw, ih, &occ) {
-                    Some((pl, r, _)) => Some((pl, r)),
+                match place_inset(&lay, inset, &occ) {
+                    Some(placed) => Some(placed),
                     None if pass < 2 => {
                         inset_out = true;
                         continue;
@@ -908,6 +917,70 @@ fn draw_panel(
     unreachable!("the third pass always returns")
 }
 
+/// One pass of [`draw_panel`] up to the legend and the inset: clears `area`, lays the panel out
+/// with `column` pixels kept free on the right, draws axes, data and frame; returns the layout,
+/// the pixels the data cover, and the report.
+fn draw_plot(
+    canvas: &mut Canvas,
+    area: PxRect,
+    p: &Prep,
+    f: &Fonts,
+    (compact, min_left): (bool, f64),
+    column: f64,
+) -> (Layout, Occupancy, PanelReport) {
+    canvas.fill_rect(area, Rgb::WHITE, 1.0);
+    let lay = layout(area, p, f, column, compact, min_left);
+    let mut occ = Occupancy::new(lay.plot);
+    let texts = draw_axes(canvas, area, p, &lay, f, compact);
+    let vertices = draw_data(canvas, p, &lay, &mut occ);
+    canvas.frame(lay.plot, palette::AXIS);
+    let mut rep = panel_report(p, Some(&lay));
+    rep.texts = texts;
+    for (r, v) in rep.curves.iter_mut().zip(vertices) {
+        r.vertices_drawn = v;
+    }
+    if p.x.empty || p.y.empty {
+        put_text(
+            canvas,
+            "no finite data",
+            f.axis,
+            (
+                (lay.plot.x0 + lay.plot.x1) / 2.0,
+                (lay.plot.y0 + lay.plot.y1) / 2.0,
+            ),
+            HAlign::Center,
+            VAlign::Middle,
+            Rotation::None,
+            palette::NOTE,
+            false,
+        );
+    }
+    (lay, occ, rep)
+}
+
+/// The inset's spot in the column right of the plot, from `(x, y)`, `width` wide, if it is at
+/// least 80 pixels high.
+fn outside_inset(lay: &Layout, (x, y): (f64, f64), width: f64) -> Option<(Placement, PxRect)> {
+    let ih = (width * 0.75).min(lay.plot.y1 - y).max(0.0);
+    (ih >= 80.0).then(|| {
+        (
+            Placement::OutsideRight,
+            PxRect::new(x, y, x + width, y + ih),
+        )
+    })
+}
+
+/// A spot inside the plot for the inset that covers no data, if there is one.
+fn place_inset(lay: &Layout, inset: &Inset, occ: &Occupancy) -> Option<(Placement, PxRect)> {
+    let iw = (lay.plot.width() * inset.size.0.clamp(0.1, 0.9))
+        .max(170.0)
+        .min(lay.plot.width() - 20.0);
+    let ih = (lay.plot.height() * inset.size.1.clamp(0.1, 0.9))
+        .max(120.0)
+        .min(lay.plot.height() - 20.0);
+    legend::choose(lay.plot, iw, ih, occ).map(|(pl, r, _)| (pl, r))
+}
+
 /// Draws shades, grid, ticks, tick labels and titles; returns every text drawn with its box.
 fn draw_axes(
     canvas: &mut Canvas,
@@ -917,9 +990,19 @@ fn draw_axes(
     f: &Fonts,
     compact: bool,
 ) -> Vec<(String, PxRect)> {
-    let pr = lay.plot;
     let mut boxes = Vec::new();
-    // Shades behind everything.
+    draw_shades(canvas, p, lay);
+    if p.src.grid {
+        draw_grid_lines(canvas, lay);
+    }
+    draw_ticks(canvas, lay, f, &mut boxes);
+    draw_titles(canvas, area, p, lay, (f, compact), &mut boxes);
+    boxes
+}
+
+/// Shades behind everything.
+fn draw_shades(canvas: &mut Canvas, p: &Prep, lay: &Layout) {
+    let pr = lay.plot;
     for s in p.src.shades {
         let (a, b) = (lay.xm.px(s.from), lay.xm.px(s.to));
         if a.is_finite() && b.is_finite() {
@@ -929,25 +1012,32 @@ fn draw_axes(
             }
         }
     }
-    if p.src.grid {
-        for t in lay.xt.iter().filter(|t| t.is_major()) {
-            let x = lay.xm.px(t.value).round() as i32;
-            if (x as f64) > pr.x0 && (x as f64) < pr.x1 - 1.0 {
-                for y in pr.y0 as i32..pr.y1 as i32 {
-                    canvas.blend(x, y, palette::GRID, 1.0);
-                }
-            }
-        }
-        for t in lay.yt.iter().filter(|t| t.is_major()) {
-            let y = lay.ym.px(t.value).round() as i32;
-            if (y as f64) > pr.y0 && (y as f64) < pr.y1 - 1.0 {
-                for x in pr.x0 as i32..pr.x1 as i32 {
-                    canvas.blend(x, y, palette::GRID, 1.0);
-                }
+}
+
+/// Grid lines at the major ticks.
+fn draw_grid_lines(canvas: &mut Canvas, lay: &Layout) {
+    let pr = lay.plot;
+    for t in lay.xt.iter().filter(|t| t.is_major()) {
+        let x = lay.xm.px(t.value).round() as i32;
+        if (x as f64) > pr.x0 && (x as f64) < pr.x1 - 1.0 {
+            for y in pr.y0 as i32..pr.y1 as i32 {
+                canvas.blend(x, y, palette::GRID, 1.0);
             }
         }
     }
-    // Tick marks and labels.
+    for t in lay.yt.iter().filter(|t| t.is_major()) {
+        let y = lay.ym.px(t.value).round() as i32;
+        if (y as f64) > pr.y0 && (y as f64) < pr.y1 - 1.0 {
+            for x in pr.x0 as i32..pr.x1 as i32 {
+                canvas.blend(x, y, palette::GRID, 1.0);
+            }
+        }
+    }
+}
+
+/// Tick marks and labels of both axes; the labels' boxes go to `boxes`.
+fn draw_ticks(canvas: &mut Canvas, lay: &Layout, f: &Fonts, boxes: &mut Vec<(String, PxRect)>) {
+    let pr = lay.plot;
     let (bx, by) = (pr.x0 as i32, pr.y1 as i32 - 1);
     for t in &lay.xt {
         let x = lay.xm.px(t.value);
@@ -999,8 +1089,24 @@ fn draw_axes(
             boxes.push((l.clone(), r));
         }
     }
+}
+
+/// The panel's title and (unless compact) the axis titles; their boxes go to `boxes`.
+fn draw_titles(
+    canvas: &mut Canvas,
+    area: PxRect,
+    p: &Prep,
+    lay: &Layout,
+    (f, compact): (&Fonts, bool),
+    boxes: &mut Vec<(String, PxRect)>,
+) {
+    let pr = lay.plot;
+    let mut put = |canvas: &mut Canvas, t: &str, size, at, h, v, rot| {
+        let r = put_text(canvas, t, size, at, h, v, rot, Rgb::BLACK, false);
+        boxes.push((t.to_string(), r));
+    };
     if !p.src.title.is_empty() {
-        let r = put_text(
+        put(
             canvas,
             p.src.title,
             f.panel_title,
@@ -1008,15 +1114,12 @@ fn draw_axes(
             HAlign::Center,
             VAlign::Top,
             Rotation::None,
-            Rgb::BLACK,
-            false,
         );
-        boxes.push((p.src.title.to_string(), r));
     }
     if !compact {
         let xt = p.x_axis.title();
         if !xt.is_empty() {
-            let r = put_text(
+            put(
                 canvas,
                 &xt,
                 f.axis,
@@ -1024,14 +1127,11 @@ fn draw_axes(
                 HAlign::Center,
                 VAlign::Bottom,
                 Rotation::None,
-                Rgb::BLACK,
-                false,
             );
-            boxes.push((xt.clone(), r));
         }
         let yt = p.y_axis.title();
         if !yt.is_empty() {
-            let r = put_text(
+            put(
                 canvas,
                 &yt,
                 f.axis,
@@ -1039,13 +1139,9 @@ fn draw_axes(
                 HAlign::Center,
                 VAlign::Top,
                 Rotation::Up,
-                Rgb::BLACK,
-                false,
             );
-            boxes.push((yt.clone(), r));
         }
     }
-    boxes
 }
 
 /// Pixel runs of a curve's usable points (a non-usable point breaks the line).
@@ -1073,103 +1169,154 @@ fn draw_data(canvas: &mut Canvas, p: &Prep, lay: &Layout, occ: &mut Occupancy) -
     let clip = PxRect::new(pr.x0 + 1.0, pr.y0 + 1.0, pr.x1 - 1.0, pr.y1 - 1.0);
     // Bands first, so that no band covers a line.
     for (i, c) in p.src.curves.iter().enumerate() {
-        let Some((lo, hi)) = &c.band else { continue };
-        let n = n_points(c).min(lo.len()).min(hi.len());
-        let below = pr.y1 + 10.0;
-        let edge = |v: f64| {
-            let y = lay.ym.px(v);
-            if y.is_finite() {
-                y
-            } else if v.is_finite() {
-                below // ≤ 0 on a log axis: the band reaches below the axis
-            } else {
-                f64::NAN
-            }
-        };
-        let (mut xs, mut up, mut dn) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-        );
-        for k in 0..n {
-            let (a, b) = (edge(lo[k]), edge(hi[k]));
-            xs.push(lay.xm.px(c.x[k]));
-            up.push(a.min(b));
-            dn.push(a.max(b));
+        if let Some((lo, hi)) = &c.band {
+            draw_band(
+                canvas,
+                (c, lo, hi),
+                lay,
+                clip,
+                (p.colours[i], &p.styles[i]),
+                occ,
+            );
         }
-        let mut cov = Coverage::new(clip);
-        cov.columns(band_columns(&xs, &up, &dn, clip.x0, clip.x1));
-        cov.composite(canvas, p.colours[i], p.styles[i].band_opacity);
-        cov.for_each(|x, y, a| {
-            if a > 0.2 {
-                occ.add(x, y, BAND_WEIGHT);
-            }
-        });
     }
     let mut vertices = vec![0; p.src.curves.len()];
     let mut markers: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
     for (i, c) in p.src.curves.iter().enumerate() {
-        let st = &p.styles[i];
-        let rs = runs(c, lay);
-        let mut cov = Coverage::new(clip);
-        let mut pts_for_markers = Vec::new();
-        for r in &rs {
-            let t = thin_columns(r);
-            vertices[i] += t.len();
-            if let Some(d) = st.dash {
-                let w = if st.width.is_finite() {
-                    st.width.clamp(0.3, 20.0)
-                } else {
-                    1.5
-                };
-                cov.polyline(&t, w, d.pattern(w).as_deref());
-            }
-            if let Some(m) = st.marker {
-                match m.every {
-                    Some(every) if every.is_finite() && every >= 4.0 => {
-                        pts_for_markers.extend(along(&t, every, m.offset, &clip));
-                    }
-                    _ => pts_for_markers.extend(r.iter().copied()),
-                }
-            }
-        }
-        cov.composite(canvas, p.colours[i], 1.0);
-        cov.for_each(|x, y, a| {
-            if a > 0.25 {
-                occ.add(x, y, LINE_WEIGHT);
-            }
-        });
-        if !pts_for_markers.is_empty() {
-            markers.push((i, pts_for_markers));
+        let (v, pts) = draw_line(canvas, c, lay, clip, (p.colours[i], &p.styles[i]), occ);
+        vertices[i] = v;
+        if !pts.is_empty() {
+            markers.push((i, pts));
         }
     }
     // Markers over all lines.
     for (i, pts) in markers {
-        let Some(m) = p.styles[i].marker else {
-            continue;
-        };
-        let st = Stamp::new(m.shape, m.size, m.filled, 1.4);
-        let mut cov = Coverage::new(clip.grow(0.0));
-        let mut seen = HashSet::new();
-        for q in pts {
-            if q.0 < clip.x0 - m.size
-                || q.0 > clip.x1 + m.size
-                || q.1 < clip.y0 - m.size
-                || q.1 > clip.y1 + m.size
-            {
-                continue;
-            }
-            if seen.insert(((q.0 * 4.0) as i64, (q.1 * 4.0) as i64)) {
-                cov.stamp(&st, q);
+        if let Some(m) = p.styles[i].marker {
+            draw_markers(canvas, &pts, m, clip, p.colours[i], occ);
+        }
+    }
+    draw_labels(canvas, p, lay, occ);
+    vertices
+}
+
+/// A curve's ±1σ band (edges ≤ 0 on a log axis reach below the axis).
+fn draw_band(
+    canvas: &mut Canvas,
+    (c, lo, hi): (&Curve, &[f64], &[f64]),
+    lay: &Layout,
+    clip: PxRect,
+    (colour, style): (Rgb, &Style),
+    occ: &mut Occupancy,
+) {
+    let n = n_points(c).min(lo.len()).min(hi.len());
+    let below = lay.plot.y1 + 10.0;
+    let edge = |v: f64| {
+        let y = lay.ym.px(v);
+        if y.is_finite() {
+            y
+        } else if v.is_finite() {
+            below // ≤ 0 on a log axis: the band reaches below the axis
+        } else {
+            f64::NAN
+        }
+    };
+    let (mut xs, mut up, mut dn) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
+    for k in 0..n {
+        let (a, b) = (edge(lo[k]), edge(hi[k]));
+        xs.push(lay.xm.px(c.x[k]));
+        up.push(a.min(b));
+        dn.push(a.max(b));
+    }
+    let mut cov = Coverage::new(clip);
+    cov.columns(band_columns(&xs, &up, &dn, clip.x0, clip.x1));
+    cov.composite(canvas, colour, style.band_opacity);
+    cov.for_each(|x, y, a| {
+        if a > 0.2 {
+            occ.add(x, y, BAND_WEIGHT);
+        }
+    });
+}
+
+/// A curve's line; returns the vertices stroked and the points for its markers.
+fn draw_line(
+    canvas: &mut Canvas,
+    c: &Curve,
+    lay: &Layout,
+    clip: PxRect,
+    (colour, st): (Rgb, &Style),
+    occ: &mut Occupancy,
+) -> (usize, Vec<(f64, f64)>) {
+    let mut vertices = 0;
+    let mut cov = Coverage::new(clip);
+    let mut pts_for_markers = Vec::new();
+    for r in &runs(c, lay) {
+        let t = thin_columns(r);
+        vertices += t.len();
+        if let Some(d) = st.dash {
+            let w = if st.width.is_finite() {
+                st.width.clamp(0.3, 20.0)
+            } else {
+                1.5
+            };
+            cov.polyline(&t, w, d.pattern(w).as_deref());
+        }
+        if let Some(m) = st.marker {
+            match m.every {
+                Some(every) if every.is_finite() && every >= 4.0 => {
+                    pts_for_markers.extend(along(&t, every, m.offset, &clip));
+                }
+                _ => pts_for_markers.extend(r.iter().copied()),
             }
         }
-        cov.composite(canvas, p.colours[i], 1.0);
-        cov.for_each(|x, y, a| {
-            if a > 0.25 {
-                occ.add(x, y, LINE_WEIGHT);
-            }
-        });
     }
+    cov.composite(canvas, colour, 1.0);
+    cov.for_each(|x, y, a| {
+        if a > 0.25 {
+            occ.add(x, y, LINE_WEIGHT);
+        }
+    });
+    (vertices, pts_for_markers)
+}
+
+/// A curve's markers at `pts` (once per quarter pixel, those near the plot).
+fn draw_markers(
+    canvas: &mut Canvas,
+    pts: &[(f64, f64)],
+    m: Marker,
+    clip: PxRect,
+    colour: Rgb,
+    occ: &mut Occupancy,
+) {
+    let st = Stamp::new(m.shape, m.size, m.filled, 1.4);
+    let mut cov = Coverage::new(clip.grow(0.0));
+    let mut seen = HashSet::new();
+    for &q in pts {
+        if q.0 < clip.x0 - m.size
+            || q.0 > clip.x1 + m.size
+            || q.1 < clip.y0 - m.size
+            || q.1 > clip.y1 + m.size
+        {
+            continue;
+        }
+        if seen.insert(((q.0 * 4.0) as i64, (q.1 * 4.0) as i64)) {
+            cov.stamp(&st, q);
+        }
+    }
+    cov.composite(canvas, colour, 1.0);
+    cov.for_each(|x, y, a| {
+        if a > 0.25 {
+            occ.add(x, y, LINE_WEIGHT);
+        }
+    });
+}
+
+/// The panel's text labels at data coordinates inside the plot.
+fn draw_labels(canvas: &mut Canvas, p: &Prep, lay: &Layout, occ: &mut Occupancy) {
+    let pr = lay.plot;
     for l in p.src.labels {
         let (x, y) = (lay.xm.px(l.x), lay.ym.px(l.y));
         if !(x.is_finite() && y.is_finite()) || x < pr.x0 || x > pr.x1 || y < pr.y0 || y > pr.y1 {
@@ -1188,7 +1335,6 @@ fn draw_data(canvas: &mut Canvas, p: &Prep, lay: &Layout, occ: &mut Occupancy) -
         );
         occ.add_rect(r, LINE_WEIGHT);
     }
-    vertices
 }
 
 /// Points every `every` pixels along a polyline, starting at `offset`, inside `clip`.

@@ -15,10 +15,138 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
-use edgekf::scenario::{FrameworkSpec, Resolved, Scenario, ScenarioSpec};
+use edgekf::scenario::{FrameworkSpec, Resolved, Scenario, ScenarioError, ScenarioSpec};
 use edgekf::sim::sweep::SweepResults;
 use edgekf::sim::{Outcome, Results};
+
+use crate::framework::FrameworkFileError;
+
+/// Why a scenario could not be loaded. Each message names the scenario (`file`: its path, or
+/// whatever the caller calls it), and the key and the problem where there is one; the
+/// underlying error is the [`source`](std::error::Error::source) where the message does not
+/// already say it.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// A resolved scenario (JSON, it starts with `{`) that does not parse.
+    #[error("{file}: not a valid resolved scenario")]
+    Resolved {
+        /// The scenario.
+        file: String,
+        /// The parser's error.
+        source: serde_json::Error,
+    },
+    /// A TOML scenario that does not parse into a scenario spec (the parser names the key).
+    #[error("{file}: {error}")]
+    Toml {
+        /// The scenario.
+        file: String,
+        /// The parser's error (in the message, so not a `source`).
+        error: toml::de::Error,
+    },
+    /// A JSON scenario text that is not JSON.
+    #[error("{file}: not a JSON object")]
+    Json {
+        /// The scenario.
+        file: String,
+        /// The parser's error.
+        source: serde_json::Error,
+    },
+    /// JSON that is not an object.
+    #[error("{file}: a scenario is a table of keys, got `{value}`")]
+    NotATable {
+        /// The scenario.
+        file: String,
+        /// What it is instead.
+        value: serde_json::Value,
+    },
+    /// A JSON object whose keys are not those of a scenario file.
+    #[error("{file}: {error}")]
+    Keys {
+        /// The scenario.
+        file: String,
+        /// The parser's error, naming the key (in the message, so not a `source`).
+        error: serde_json::Error,
+    },
+    /// Its `framework.file` cannot be had.
+    #[error("{file}: key `framework.file`")]
+    Framework {
+        /// The scenario.
+        file: String,
+        /// Why.
+        source: FrameworkError,
+    },
+    /// The scenario fails its checks.
+    #[error("{file}: invalid scenario")]
+    Invalid {
+        /// The scenario.
+        file: String,
+        /// Which key, and why.
+        source: ScenarioError,
+    },
+}
+
+/// Why a framework file could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameworkError {
+    /// The file cannot be read.
+    #[error("cannot read framework file {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// It is not a framework file.
+    #[error("{}: {error}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// Why (in the message, so not a `source`).
+        error: FrameworkFileError,
+    },
+    /// A framework file a shipped scenario names is not among the embedded ones
+    /// ([`reproductions::framework_text`]).
+    #[error("framework file `{path}` is not shipped with the reproductions")]
+    NotShipped {
+        /// The file, as the scenario names it.
+        path: String,
+    },
+}
+
+/// Why an output could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The output directory cannot be created.
+    #[error("cannot create {}", path.display())]
+    CreateDir {
+        /// The directory.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A file cannot be written (under its temporary name).
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The temporary file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A staged file cannot be renamed to its final name.
+    #[error("cannot move {} into place", path.display())]
+    Rename {
+        /// The temporary file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The scenario cannot be serialised (not expected for a checked scenario).
+    #[error("cannot serialise the scenario")]
+    Serialise {
+        /// The cause.
+        source: serde_json::Error,
+    },
+}
 
 /// Which kind of study a scenario text describes.
 pub enum Kind {
@@ -48,7 +176,11 @@ pub fn kind_of(text: &str) -> Kind {
 
 /// Parses and checks a filter scenario (TOML or resolved JSON). `source` names it in errors;
 /// `base` is the directory relative paths (`framework.file`) are resolved against, if any.
-pub fn load_scenario(source: &str, text: &str, base: Option<&Path>) -> Result<Scenario> {
+///
+/// # Errors
+/// [`LoadError`]: a text that does not parse, an unreadable framework file, or a scenario that
+/// fails its checks; the message names `source`, the key and the problem.
+pub fn load_scenario(source: &str, text: &str, base: Option<&Path>) -> Result<Scenario, LoadError> {
     load_scenario_with(source, text, &|rel: &str| framework_at(base, rel))
 }
 
@@ -60,19 +192,28 @@ pub fn load_scenario(source: &str, text: &str, base: Option<&Path>) -> Result<Sc
 pub fn load_scenario_with(
     source: &str,
     text: &str,
-    framework: &dyn Fn(&str) -> Result<FrameworkSpec>,
-) -> Result<Scenario> {
+    framework: &dyn Fn(&str) -> Result<FrameworkSpec, FrameworkError>,
+) -> Result<Scenario, LoadError> {
+    let file = || source.to_string();
     if text.trim_start().starts_with('{') {
-        let r: Resolved = serde_json::from_str(text)
-            .with_context(|| format!("{source}: not a valid resolved scenario"))?;
-        return Scenario::from_resolved(&r).with_context(|| format!("{source}: invalid scenario"));
+        let r: Resolved = serde_json::from_str(text).map_err(|source| LoadError::Resolved {
+            file: file(),
+            source,
+        })?;
+        return Scenario::from_resolved(&r).map_err(|source| LoadError::Invalid {
+            file: file(),
+            source,
+        });
     }
-    let spec: ScenarioSpec = toml::from_str(text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let spec: ScenarioSpec = toml::from_str(text).map_err(|error| LoadError::Toml {
+        file: file(),
+        error,
+    })?;
     scenario_from_spec_with(source, &spec, framework)
 }
 
 /// The framework file `rel`, relative to `base` if given.
-fn framework_at(base: Option<&Path>, rel: &str) -> Result<FrameworkSpec> {
+fn framework_at(base: Option<&Path>, rel: &str) -> Result<FrameworkSpec, FrameworkError> {
     let path = base.map_or_else(|| PathBuf::from(rel), |b| b.join(rel));
     load_framework_file(&path)
 }
@@ -82,17 +223,29 @@ fn framework_at(base: Option<&Path>, rel: &str) -> Result<FrameworkSpec> {
 ///
 /// # Errors
 /// As [`load_scenario`]: the message names `source`, the key and the problem.
-pub fn load_scenario_json(source: &str, text: &str, base: Option<&Path>) -> Result<Scenario> {
-    let v: serde_json::Value =
-        serde_json::from_str(text).with_context(|| format!("{source}: not a JSON object"))?;
+pub fn load_scenario_json(
+    source: &str,
+    text: &str,
+    base: Option<&Path>,
+) -> Result<Scenario, LoadError> {
+    let file = || source.to_string();
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|source| LoadError::Json {
+        file: file(),
+        source,
+    })?;
     if !v.is_object() {
-        bail!("{source}: a scenario is a table of keys, got `{v}`");
+        return Err(LoadError::NotATable {
+            file: file(),
+            value: v,
+        });
     }
     if v.get("schema").is_some() {
         return load_scenario(source, text.trim_start(), base);
     }
-    let spec: ScenarioSpec =
-        serde_json::from_value(v).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let spec: ScenarioSpec = serde_json::from_value(v).map_err(|error| LoadError::Keys {
+        file: file(),
+        error,
+    })?;
     scenario_from_spec(source, &spec, base)
 }
 
@@ -100,12 +253,13 @@ pub fn load_scenario_json(source: &str, text: &str, base: Option<&Path>) -> Resu
 /// if it names one.
 ///
 /// # Errors
-/// An unreadable framework file or a scenario that fails its checks; the message names `source`.
+/// [`LoadError`]: an unreadable framework file or a scenario that fails its checks; the message
+/// names `source`.
 pub fn scenario_from_spec(
     source: &str,
     spec: &ScenarioSpec,
     base: Option<&Path>,
-) -> Result<Scenario> {
+) -> Result<Scenario, LoadError> {
     scenario_from_spec_with(source, spec, &|rel: &str| framework_at(base, rel))
 }
 
@@ -113,22 +267,35 @@ pub fn scenario_from_spec(
 fn scenario_from_spec_with(
     source: &str,
     spec: &ScenarioSpec,
-    framework: &dyn Fn(&str) -> Result<FrameworkSpec>,
-) -> Result<Scenario> {
+    framework: &dyn Fn(&str) -> Result<FrameworkSpec, FrameworkError>,
+) -> Result<Scenario, LoadError> {
     let file = match &spec.framework.file {
-        Some(rel) => {
-            Some(framework(rel).with_context(|| format!("{source}: key `framework.file`"))?)
-        }
+        Some(rel) => Some(framework(rel).map_err(|e| LoadError::Framework {
+            file: source.to_string(),
+            source: e,
+        })?),
         None => None,
     };
-    Scenario::from_spec(spec, file.as_ref()).with_context(|| format!("{source}: invalid scenario"))
+    Scenario::from_spec(spec, file.as_ref()).map_err(|e| LoadError::Invalid {
+        file: source.to_string(),
+        source: e,
+    })
 }
 
 /// Reads a framework file into the inline framework form.
-pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec> {
-    let text = fs::read_to_string(path)
-        .with_context(|| format!("cannot read framework file {}", path.display()))?;
-    framework::spec_from_json(&text).map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
+///
+/// # Errors
+/// [`FrameworkError::Read`] when the file cannot be read, [`FrameworkError::Parse`] when it is
+/// not a framework file.
+pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec, FrameworkError> {
+    let text = fs::read_to_string(path).map_err(|source| FrameworkError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    framework::spec_from_json(&text).map_err(|error| FrameworkError::Parse {
+        path: path.to_path_buf(),
+        error,
+    })
 }
 
 /// Files staged under temporary names in a directory and moved into place together once every
@@ -140,8 +307,14 @@ pub struct Staged {
 
 impl Staged {
     /// Stages into `dir` (created if needed).
-    pub fn new(dir: &Path) -> Result<Self> {
-        fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    ///
+    /// # Errors
+    /// [`OutputError::CreateDir`] when the directory cannot be created.
+    pub fn new(dir: &Path) -> Result<Self, OutputError> {
+        fs::create_dir_all(dir).map_err(|source| OutputError::CreateDir {
+            path: dir.to_path_buf(),
+            source,
+        })?;
         Ok(Self {
             dir: dir.to_path_buf(),
             files: Vec::new(),
@@ -160,16 +333,21 @@ impl Staged {
     }
 
     /// Stages `bytes` as `name`.
-    pub fn write(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+    ///
+    /// # Errors
+    /// [`OutputError::Write`] when the temporary file cannot be written.
+    pub fn write(&mut self, name: &str, bytes: &[u8]) -> Result<(), OutputError> {
         let tmp = self.path(name);
-        fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))
+        fs::write(&tmp, bytes).map_err(|source| OutputError::Write { path: tmp, source })
     }
 
     /// Moves every staged file into place.
-    pub fn commit(mut self) -> Result<()> {
+    ///
+    /// # Errors
+    /// [`OutputError::Rename`] when a file cannot be moved into place.
+    pub fn commit(mut self) -> Result<(), OutputError> {
         for (tmp, dest) in std::mem::take(&mut self.files) {
-            fs::rename(&tmp, &dest)
-                .with_context(|| format!("cannot move {} into place", tmp.display()))?;
+            fs::rename(&tmp, &dest).map_err(|source| OutputError::Rename { path: tmp, source })?;
         }
         Ok(())
     }
@@ -391,9 +569,10 @@ pub fn inputs_csv(res: &Results, dim: usize, agents: usize, of: &[usize]) -> Str
 /// [`to_json_pretty`].
 ///
 /// # Errors
-/// When the scenario cannot be serialised (not expected for a checked scenario).
-pub fn scenario_json(sc: &Scenario) -> Result<String> {
-    to_json_pretty(&sc.to_resolved()).context("cannot serialise the scenario")
+/// [`OutputError::Serialise`] when the scenario cannot be serialised (not expected for a
+/// checked scenario).
+pub fn scenario_json(sc: &Scenario) -> Result<String, OutputError> {
+    to_json_pretty(&sc.to_resolved()).map_err(|source| OutputError::Serialise { source })
 }
 
 /// JSON indented like `serde_json::to_string_pretty` (two spaces, keys in their order), except
@@ -481,8 +660,8 @@ pub fn input_agents(sc: &Scenario) -> Vec<usize> {
 /// `inputs.csv` (when the scenario has input figures) and `status.csv`.
 ///
 /// # Errors
-/// When a file cannot be written.
-pub fn stage_tables(st: &mut Staged, sc: &Scenario, res: &Results) -> Result<()> {
+/// [`OutputError`] when a file cannot be written.
+pub fn stage_tables(st: &mut Staged, sc: &Scenario, res: &Results) -> Result<(), OutputError> {
     st.write("scenario.json", scenario_json(sc)?.as_bytes())?;
     st.write("metrics.csv", metrics_csv(res).as_bytes())?;
     let (dim, agents) = (sc.framework().dim(), sc.framework().agents());
@@ -495,4 +674,60 @@ pub fn stage_tables(st: &mut Staged, sc: &Scenario, res: &Results) -> Result<()>
         st.write("inputs.csv", inputs_csv(res, dim, agents, &of).as_bytes())?;
     }
     st.write("status.csv", status_csv(res).as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The message as the front ends print it (`{:#}` of `anyhow`): each error of the chain.
+    fn chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut next = e.source();
+        while let Some(x) = next {
+            s.push_str(": ");
+            s.push_str(&x.to_string());
+            next = x.source();
+        }
+        s
+    }
+
+    #[test]
+    fn messages_name_the_file_and_the_problem_once() {
+        let e = load_scenario("s.toml", "name = [", None).unwrap_err();
+        assert!(matches!(&e, LoadError::Toml { file, .. } if file == "s.toml"));
+        assert!(chain(&e).starts_with("s.toml: "), "{}", chain(&e));
+        assert_eq!(chain(&e), e.to_string(), "the parser's error is said once");
+
+        let e = load_scenario_json("dict", "[1]", None).unwrap_err();
+        assert_eq!(chain(&e), "dict: a scenario is a table of keys, got `[1]`");
+        let e = load_scenario_json("dict", "{", None).unwrap_err();
+        assert!(
+            chain(&e).starts_with("dict: not a JSON object: "),
+            "{}",
+            chain(&e)
+        );
+
+        let e = load_framework_file(Path::new("/nonexistent/f.json")).unwrap_err();
+        assert!(matches!(e, FrameworkError::Read { .. }));
+        assert!(
+            chain(&e).starts_with("cannot read framework file /nonexistent/f.json: "),
+            "{}",
+            chain(&e)
+        );
+        let e = reproductions::embedded_framework("nope.json").unwrap_err();
+        assert_eq!(
+            chain(&e),
+            "framework file `nope.json` is not shipped with the reproductions"
+        );
+
+        let e = Staged::new(Path::new("/proc/edgekf-no-such-dir/x"))
+            .err()
+            .unwrap();
+        assert!(
+            chain(&e).starts_with("cannot create /proc/edgekf-no-such-dir/x: "),
+            "{}",
+            chain(&e)
+        );
+    }
 }

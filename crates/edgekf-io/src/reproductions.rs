@@ -8,6 +8,7 @@
 use edgekf::scenario::{FrameworkSpec, Scenario, ScenarioError, ScenarioSpec};
 
 use crate::framework::{spec_from_json, FrameworkFileError};
+use crate::FrameworkError;
 
 /// Why a shipped scenario cannot be had (a bug of the shipped files: tests check every entry),
 /// or why a reproduction is not a filter study.
@@ -126,6 +127,22 @@ pub const FRAMEWORKS: &[(&str, &str)] = &[
 pub fn framework_text(path: &str) -> Option<&'static str> {
     let path = path.trim_start_matches("./");
     FRAMEWORKS.iter().find(|(p, _)| *p == path).map(|(_, t)| *t)
+}
+
+/// The embedded framework file `path` (as a shipped scenario names it), parsed: how the
+/// reproductions resolve `framework.file` ([`crate::load_scenario_with`]).
+///
+/// # Errors
+/// [`FrameworkError::NotShipped`] when it is not embedded, [`FrameworkError::Parse`] when it does
+/// not parse.
+pub fn embedded_framework(path: &str) -> Result<FrameworkSpec, FrameworkError> {
+    let text = framework_text(path).ok_or_else(|| FrameworkError::NotShipped {
+        path: path.to_string(),
+    })?;
+    spec_from_json(text).map_err(|error| FrameworkError::Parse {
+        path: path.into(),
+        error,
+    })
 }
 
 /// Every reproducible figure, in paper order.

@@ -54,7 +54,7 @@ struct Workspace {
 }
 
 fn rhs(sc: &Scenario, ws: &mut Workspace, t: f64, s: &DVector<f64>, out: &mut DVector<f64>) {
-    let model = &sc.model;
+    let model = sc.model();
     let n = model.n;
     let dim = model.dim();
     let x = &s.as_slice()[..dim];
@@ -62,7 +62,7 @@ fn rhs(sc: &Scenario, ws: &mut Workspace, t: f64, s: &DVector<f64>, out: &mut DV
         .map(|i| &s.as_slice()[(i + 1) * dim..(i + 2) * dim])
         .collect();
     model.control_into(t, x, &xhat, &mut ws.u);
-    match &sc.disturbance {
+    match sc.disturbance() {
         Some(d) => {
             d.omega_into(t, &mut ws.omega);
             for i in 0..n {
@@ -78,12 +78,12 @@ fn rhs(sc: &Scenario, ws: &mut Workspace, t: f64, s: &DVector<f64>, out: &mut DV
     model.input_into(t, &mut ws.bu);
     let xv = s.rows(0, dim);
     for i in 0..n {
-        let ob = &sc.observers[i];
+        let ob = &sc.observers()[i];
         let xi = s.rows((i + 1) * dim, dim);
         // innovation y_i − H_i x̂_i = H_i (x − x̂_i) + ν_i
         ws.innov[i].gemv(1.0, &model.h[i], &xv, 0.0);
         ws.innov[i].gemv(-1.0, &model.h[i], &xi, 1.0);
-        if sc.disturbance.is_some() {
+        if sc.disturbance().is_some() {
             ws.innov[i] += &ws.nu[i];
         }
         // consensus Σ_j a_ij (x̂_j − x̂_i)
@@ -97,25 +97,25 @@ fn rhs(sc: &Scenario, ws: &mut Workspace, t: f64, s: &DVector<f64>, out: &mut DV
         o.gemv(1.0, &model.a, &xi, 0.0);
         o += &ws.bu;
         o.gemv(1.0, &ob.k, &ws.innov[i], 1.0);
-        o.gemv(sc.gamma, &ob.w_proj, &ws.cons, 1.0);
+        o.gemv(sc.gamma(), &ob.w_proj, &ws.cons, 1.0);
     }
 }
 
 /// Simulates the scenario with its own step and output grid.
 pub fn simulate(sc: &Scenario) -> Trajectory {
-    simulate_with_step(sc, sc.step, sc.steps, sc.output_stride)
+    simulate_with_step(sc, sc.step(), sc.steps(), sc.output_stride())
 }
 
 /// Simulates with RK4 step `h` for `steps` steps, sampling every `stride` steps (and at `t = 0`).
 pub fn simulate_with_step(sc: &Scenario, h: f64, steps: usize, stride: usize) -> Trajectory {
-    let model = &sc.model;
+    let model = sc.model();
     let n = model.n;
     let dim = model.dim();
     let total = (n + 1) * dim;
     let mut s = DVector::zeros(total);
-    s.rows_mut(0, dim).copy_from(&sc.x0);
+    s.rows_mut(0, dim).copy_from(sc.x0());
     for i in 0..n {
-        s.rows_mut((i + 1) * dim, dim).copy_from(&sc.xhat0[i]);
+        s.rows_mut((i + 1) * dim, dim).copy_from(&sc.xhat0()[i]);
     }
     let mut ws = Workspace {
         bu: DVector::zeros(dim),
@@ -181,16 +181,18 @@ pub fn simulate_with_step(sc: &Scenario, h: f64, steps: usize, stride: usize) ->
 /// `𝒜` = [`crate::observer::error_system_matrix`], from `E(0) = x̂(0) − x(0)` with the same RK4 grid as
 /// [`simulate`]. Returns `E` at the output samples.
 pub fn simulate_error_system(sc: &Scenario) -> Vec<DVector<f64>> {
-    let model = &sc.model;
+    let model = sc.model();
     let n = model.n;
     let dim = model.dim();
     let a = crate::observer::error_system_matrix(
         model,
-        &sc.observers,
-        sc.gamma,
+        sc.observers(),
+        sc.gamma(),
         crate::observer::ConsensusSign::Eq19,
     );
-    let mut e = DVector::from_fn(n * dim, |r, _| sc.xhat0[r / dim][r % dim] - sc.x0[r % dim]);
+    let mut e = DVector::from_fn(n * dim, |r, _| {
+        sc.xhat0()[r / dim][r % dim] - sc.x0()[r % dim]
+    });
     let mut omega = vec![0.0; 2 * n];
     let mut nu: Vec<DVector<f64>> = (0..n)
         .map(|i| DVector::zeros(model.measurement_rows(i)))
@@ -201,11 +203,11 @@ pub fn simulate_error_system(sc: &Scenario) -> Vec<DVector<f64>> {
              nu: &mut Vec<DVector<f64>>|
      -> DVector<f64> {
         let mut out = &a * e;
-        if let Some(d) = &sc.disturbance {
+        if let Some(d) = sc.disturbance() {
             d.omega_into(t, omega);
             for (i, nu_i) in nu.iter_mut().enumerate() {
                 d.nu_into(i, t, nu_i.as_mut_slice());
-                let kv = &sc.observers[i].k * &*nu_i;
+                let kv = &sc.observers()[i].k * &*nu_i;
                 let mut blk = out.rows_mut(i * dim, dim);
                 blk += kv;
                 for c in 0..2 * n {
@@ -215,9 +217,9 @@ pub fn simulate_error_system(sc: &Scenario) -> Vec<DVector<f64>> {
         }
         out
     };
-    let h = sc.step;
+    let h = sc.step();
     let mut out = vec![e.clone()];
-    for k in 0..sc.steps {
+    for k in 0..sc.steps() {
         let t = Scenario::time_of_step(k, h);
         let t_next = Scenario::time_of_step(k + 1, h);
         let t_mid = t + 0.5 * h;
@@ -226,7 +228,7 @@ pub fn simulate_error_system(sc: &Scenario) -> Vec<DVector<f64>> {
         let k3 = f(t_mid, &(&e + &k2 * (0.5 * h)), &mut omega, &mut nu);
         let k4 = f(t_next, &(&e + &k3 * h), &mut omega, &mut nu);
         e += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
-        if (k + 1) % sc.output_stride == 0 {
+        if (k + 1) % sc.output_stride() == 0 {
             out.push(e.clone());
         }
     }

@@ -298,35 +298,24 @@ pub enum ScenarioError {
     },
 }
 
-/// A validated scenario with its model and observer design.
+/// A validated scenario with its model and observer design: sealed — its fields are private and
+/// read through accessors, and the only way to have one is [`ScenarioSpec::validate`], so the
+/// simulation and the design checks rely on its invariants without checking again.
 #[derive(Debug, Clone)]
 pub struct Scenario {
-    /// Name.
-    pub name: String,
-    /// The resolved spec (explicit initial estimates and per-robot `r`; `schema` set).
-    pub resolved: ScenarioSpec,
-    /// The model (eqs. 12–17).
-    pub model: Model,
-    /// Coupling gain `γ`.
-    pub gamma: f64,
-    /// `Q = q I`.
-    pub q: f64,
-    /// `R_i = r_i I`.
-    pub r: Vec<f64>,
-    /// True initial state `x(0)`.
-    pub x0: DVector<f64>,
-    /// Initial estimates `x̂_i(0)`.
-    pub xhat0: Vec<DVector<f64>>,
-    /// RK4 step `h`.
-    pub step: f64,
-    /// Number of RK4 steps.
-    pub steps: usize,
-    /// Steps between outputs.
-    pub output_stride: usize,
-    /// Disturbances, if any.
-    pub disturbance: Option<Disturbance>,
-    /// Per-robot observers (eqs. 18–20).
-    pub observers: Vec<RobotObserver>,
+    name: String,
+    resolved: ScenarioSpec,
+    model: Model,
+    gamma: f64,
+    q: f64,
+    r: Vec<f64>,
+    x0: DVector<f64>,
+    xhat0: Vec<DVector<f64>>,
+    step: f64,
+    steps: usize,
+    output_stride: usize,
+    disturbance: Option<Disturbance>,
+    observers: Vec<RobotObserver>,
 }
 
 fn finite(key: &str, v: f64) -> Result<f64, ScenarioError> {
@@ -401,12 +390,89 @@ fn whole_steps(key: &'static str, value: f64, step: f64) -> Result<usize, Scenar
     Ok(k as usize)
 }
 
+/// The checked graphs (Laplacians) of a scenario.
+struct Graphs {
+    l_c: DMatrix<f64>,
+    l_plus: DMatrix<f64>,
+    l_f: DMatrix<f64>,
+}
+
+/// The checked time grid.
+struct Grid {
+    step: f64,
+    steps: usize,
+    output_stride: usize,
+}
+
 impl ScenarioSpec {
     /// Validates the spec and designs the observers.
+    ///
+    /// The sections are checked in the order of the file — tags, robots and landmarks, landmark
+    /// sets, graphs, gains, observer weights, centroid, time grid, disturbance, initial
+    /// estimates — then every robot's observer is designed and the whole checked (Theorem 1's
+    /// joint observability, RK4 stability of the closed loop).
     ///
     /// # Errors
     /// A [`ScenarioError`] naming the first failing key and condition.
     pub fn validate(&self) -> Result<Scenario, ScenarioError> {
+        self.check_tags()?;
+        let n = self.check_positions()?;
+        let m = self.landmarks.len();
+        let dim = 2 * (n + m);
+        let sets = self.check_landmark_sets(n)?;
+        let graphs = self.graphs.check(n)?;
+        let (k1, k2, gamma) = self.gains.check()?;
+        let (q, r) = self.observer.check(n)?;
+        self.centroid.check()?;
+        let grid = self.time.check(n, dim)?;
+        self.centroid.check_drift(self.time.horizon)?;
+        check_formation_step(k1, k2, &graphs.l_f, grid.step)?;
+        if let Some(d) = &self.disturbance {
+            check_disturbance(d)?;
+        }
+        let x0 = self.initial_state(n, m);
+        let xhat0 = self.check_initial_estimates(n, dim, &x0)?;
+        let p_star =
+            DVector::from_iterator(2 * n, self.desired.iter().flat_map(|p| p.iter().copied()));
+        let model = Model::new(
+            k1,
+            k2,
+            graphs.l_c,
+            graphs.l_plus,
+            graphs.l_f,
+            m,
+            sets,
+            p_star,
+            Vector2::new(self.centroid.start[0], self.centroid.start[1]),
+            Vector2::new(self.centroid.velocity[0], self.centroid.velocity[1]),
+        );
+        let observers = (0..n)
+            .map(|i| {
+                design_robot(&model, i, q, r[i])
+                    .map_err(|source| ScenarioError::Care { robot: i, source })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let scenario = Scenario {
+            name: self.name.clone(),
+            resolved: self.resolved(&r, &xhat0),
+            model,
+            gamma,
+            q,
+            r,
+            x0,
+            xhat0,
+            step: grid.step,
+            steps: grid.steps,
+            output_stride: grid.output_stride,
+            disturbance: self.disturbance.clone(),
+            observers,
+        };
+        scenario.check_design()?;
+        Ok(scenario)
+    }
+
+    /// `kind` and `schema`, when given, name this format.
+    fn check_tags(&self) -> Result<(), ScenarioError> {
         if let Some(kind) = &self.kind {
             if kind != KIND {
                 return Err(ScenarioError::WrongTag {
@@ -425,12 +491,16 @@ impl ScenarioSpec {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// `robots`, `landmarks` and `desired`: at least one robot, representable positions, one
+    /// desired position per robot. Returns the number of robots.
+    fn check_positions(&self) -> Result<usize, ScenarioError> {
         let n = self.robots.len();
         if n == 0 {
             return Err(ScenarioError::NoRobots);
         }
-        let m = self.landmarks.len();
-        let dim = 2 * (n + m);
         points("robots", &self.robots)?;
         points("landmarks", &self.landmarks)?;
         points("desired", &self.desired)?;
@@ -442,6 +512,13 @@ impl ScenarioSpec {
                 why: "one per robot",
             });
         }
+        Ok(n)
+    }
+
+    /// `landmark_sets`: one set per robot, indices in range and not repeated, every landmark in
+    /// some set. Returns the sets sorted.
+    fn check_landmark_sets(&self, n: usize) -> Result<Vec<Vec<usize>>, ScenarioError> {
+        let m = self.landmarks.len();
         if self.landmark_sets.len() != n {
             return Err(ScenarioError::Dimension {
                 key: "landmark_sets".into(),
@@ -476,6 +553,83 @@ impl ScenarioSpec {
         if let Some(l) = seen.iter().position(|s| !s) {
             return Err(ScenarioError::LandmarkUnobserved { landmark: l });
         }
+        Ok(sets)
+    }
+
+    /// The true initial state `x(0) = [p_1; …; p_n; m_1; …; m_m]`.
+    fn initial_state(&self, n: usize, m: usize) -> DVector<f64> {
+        let mut x0 = DVector::zeros(2 * (n + m));
+        for (i, p) in self.robots.iter().enumerate() {
+            x0[2 * i] = p[0];
+            x0[2 * i + 1] = p[1];
+        }
+        for (l, p) in self.landmarks.iter().enumerate() {
+            x0[2 * (n + l)] = p[0];
+            x0[2 * (n + l) + 1] = p[1];
+        }
+        x0
+    }
+
+    /// `initial_estimates`: named, or one representable vector of the state dimension per robot.
+    fn check_initial_estimates(
+        &self,
+        n: usize,
+        dim: usize,
+        x0: &DVector<f64>,
+    ) -> Result<Vec<DVector<f64>>, ScenarioError> {
+        let v = match &self.initial_estimates {
+            InitialEstimatesSpec::Named(InitialEstimateKind::Origin) => {
+                return Ok(vec![DVector::zeros(dim); n]);
+            }
+            InitialEstimatesSpec::Named(InitialEstimateKind::Exact) => {
+                return Ok(vec![x0.clone(); n]);
+            }
+            InitialEstimatesSpec::Explicit(v) => v,
+        };
+        if v.len() != n {
+            return Err(ScenarioError::Dimension {
+                key: "initial_estimates".into(),
+                expected: n,
+                found: v.len(),
+                why: "one vector per robot",
+            });
+        }
+        let mut out = Vec::with_capacity(n);
+        for (i, e) in v.iter().enumerate() {
+            if e.len() != dim {
+                return Err(ScenarioError::Dimension {
+                    key: format!("initial_estimates[{i}]"),
+                    expected: dim,
+                    found: e.len(),
+                    why: "the state dimension 2(n + m)",
+                });
+            }
+            for (k, x) in e.iter().enumerate() {
+                representable(&format!("initial_estimates[{i}][{k}]"), *x)?;
+            }
+            out.push(DVector::from_column_slice(e));
+        }
+        Ok(out)
+    }
+
+    /// The resolved spec: `schema` set, `r` per robot and the initial estimates explicit.
+    fn resolved(&self, r: &[f64], xhat0: &[DVector<f64>]) -> ScenarioSpec {
+        let mut resolved = self.clone();
+        resolved.kind = None;
+        resolved.schema = Some(SCHEMA.to_string());
+        resolved.observer.r = RSpec::PerRobot(r.to_vec());
+        resolved.initial_estimates = InitialEstimatesSpec::Explicit(
+            xhat0.iter().map(|v| v.iter().copied().collect()).collect(),
+        );
+        resolved
+    }
+}
+
+impl GraphsSpec {
+    /// Each matrix is an `n × n` Laplacian (the undirected ones symmetric); G⁺ is strongly
+    /// connected, G_f and G_c connected, and G⁺ contained in G_f (`𝓛⁻ = 𝓛_f − 𝓛⁺` has no
+    /// negative edge weight).
+    fn check(&self, n: usize) -> Result<Graphs, ScenarioError> {
         let lap = |key: &'static str,
                    rows: &[Vec<f64>],
                    undirected: bool|
@@ -486,9 +640,9 @@ impl ScenarioSpec {
                 .map_err(|defect| ScenarioError::NotLaplacian { key, defect })?;
             Ok(l)
         };
-        let l_c = lap("graphs.communication", &self.graphs.communication, true)?;
-        let l_plus = lap("graphs.measurement", &self.graphs.measurement, false)?;
-        let l_f = lap("graphs.formation", &self.graphs.formation, true)?;
+        let l_c = lap("graphs.communication", &self.communication, true)?;
+        let l_plus = lap("graphs.measurement", &self.measurement, false)?;
+        let l_f = lap("graphs.formation", &self.formation, true)?;
         if !is_strongly_connected(&l_plus) {
             return Err(ScenarioError::NotStronglyConnected);
         }
@@ -522,11 +676,25 @@ impl ScenarioSpec {
                 }
             }
         }
-        let k1 = positive("gains.k1", self.gains.k1)?;
-        let k2 = positive("gains.k2", self.gains.k2)?;
-        let gamma = positive("gains.gamma", self.gains.gamma)?;
-        let q = positive("observer.q", self.observer.q)?;
-        let r = match &self.observer.r {
+        Ok(Graphs { l_c, l_plus, l_f })
+    }
+}
+
+impl GainsSpec {
+    /// `k₁`, `k₂`, `γ`, each positive.
+    fn check(&self) -> Result<(f64, f64, f64), ScenarioError> {
+        let k1 = positive("gains.k1", self.k1)?;
+        let k2 = positive("gains.k2", self.k2)?;
+        let gamma = positive("gains.gamma", self.gamma)?;
+        Ok((k1, k2, gamma))
+    }
+}
+
+impl ObserverSpec {
+    /// `q` positive; `r` one positive value, or one per robot. Returns `q` and `r_i` per robot.
+    fn check(&self, n: usize) -> Result<(f64, Vec<f64>), ScenarioError> {
+        let q = positive("observer.q", self.q)?;
+        let r = match &self.r {
             RSpec::Scalar(v) => vec![positive("observer.r", *v)?; n],
             RSpec::PerRobot(v) => {
                 if v.len() != n {
@@ -543,23 +711,47 @@ impl ScenarioSpec {
                     .collect::<Result<Vec<_>, _>>()?
             }
         };
+        Ok((q, r))
+    }
+}
+
+impl CentroidSpec {
+    /// Start and velocity representable.
+    fn check(&self) -> Result<(), ScenarioError> {
         for c in 0..2 {
-            representable(&format!("centroid.start[{c}]"), self.centroid.start[c])?;
+            representable(&format!("centroid.start[{c}]"), self.start[c])?;
+            representable(&format!("centroid.velocity[{c}]"), self.velocity[c])?;
+        }
+        Ok(())
+    }
+
+    /// The distance travelled over the horizon representable.
+    fn check_drift(&self, horizon: f64) -> Result<(), ScenarioError> {
+        for c in 0..2 {
             representable(
-                &format!("centroid.velocity[{c}]"),
-                self.centroid.velocity[c],
+                "time.horizon × centroid.velocity",
+                self.velocity[c] * horizon,
             )?;
         }
-        let step = positive("time.step", self.time.step)?;
-        positive("time.horizon", self.time.horizon)?;
-        positive("time.output_every", self.time.output_every)?;
-        let steps = whole_steps("time.horizon", self.time.horizon, step)?;
-        let output_stride = whole_steps("time.output_every", self.time.output_every, step)?;
+        Ok(())
+    }
+}
+
+impl TimeSpec {
+    /// Step, horizon and output interval positive; horizon and output interval whole numbers of
+    /// steps, the horizon a whole number of output intervals; not more steps or stored values
+    /// than a run can hold (`n` robots, state dimension `dim`).
+    fn check(&self, n: usize, dim: usize) -> Result<Grid, ScenarioError> {
+        let step = positive("time.step", self.step)?;
+        positive("time.horizon", self.horizon)?;
+        positive("time.output_every", self.output_every)?;
+        let steps = whole_steps("time.horizon", self.horizon, step)?;
+        let output_stride = whole_steps("time.output_every", self.output_every, step)?;
         if steps % output_stride != 0 {
             return Err(ScenarioError::NotMultipleOfStep {
                 key: "time.horizon",
-                value: self.time.horizon,
-                step: self.time.output_every,
+                value: self.horizon,
+                step: self.output_every,
             });
         }
         let stored = (steps / output_stride + 1) as f64 * ((n + 1) * dim) as f64;
@@ -573,145 +765,145 @@ impl ScenarioSpec {
                 ),
             });
         }
-        for c in 0..2 {
-            representable(
-                "time.horizon × centroid.velocity",
-                self.centroid.velocity[c] * self.time.horizon,
-            )?;
-        }
-        // The formation dynamics `A = −(k₁/n) 11ᵀ − k₂ L_f` (⊗ I₂) have eigenvalues −k₁ and
-        // −k₂ λ(L_f): RK4 must be stable on them (and the observer design is meaningless past it).
-        let rho_a = k1.max(k2 * l_f.symmetric_eigenvalues().amax());
-        if step * rho_a >= RK4_BOUND {
-            return Err(ScenarioError::Unstable {
-                h_rho: step * rho_a,
-                rho: rho_a,
-                what: "the formation dynamics (gains.k1, gains.k2)",
-                bound: RK4_BOUND / rho_a,
-            });
-        }
-        if let Some(d) = &self.disturbance {
-            for (key, v) in [
-                ("disturbance.start", d.start),
-                ("disturbance.end", d.end),
-                ("disturbance.omega_amplitude", d.omega_amplitude),
-                ("disturbance.omega_frequency", d.omega_frequency),
-                (
-                    "disturbance.omega_phase_per_coordinate",
-                    d.omega_phase_per_coordinate,
-                ),
-                ("disturbance.nu_amplitude", d.nu_amplitude),
-                ("disturbance.nu_frequency", d.nu_frequency),
-                ("disturbance.nu_phase_per_row", d.nu_phase_per_row),
-                ("disturbance.nu_phase_per_robot", d.nu_phase_per_robot),
-            ] {
-                representable(key, v)?;
-            }
-            positive("disturbance.end − disturbance.start", d.end - d.start)?;
-        }
-        let mut x0 = DVector::zeros(dim);
-        for (i, p) in self.robots.iter().enumerate() {
-            x0[2 * i] = p[0];
-            x0[2 * i + 1] = p[1];
-        }
-        for (l, p) in self.landmarks.iter().enumerate() {
-            x0[2 * (n + l)] = p[0];
-            x0[2 * (n + l) + 1] = p[1];
-        }
-        let xhat0: Vec<DVector<f64>> = match &self.initial_estimates {
-            InitialEstimatesSpec::Named(InitialEstimateKind::Origin) => {
-                vec![DVector::zeros(dim); n]
-            }
-            InitialEstimatesSpec::Named(InitialEstimateKind::Exact) => vec![x0.clone(); n],
-            InitialEstimatesSpec::Explicit(v) => {
-                if v.len() != n {
-                    return Err(ScenarioError::Dimension {
-                        key: "initial_estimates".into(),
-                        expected: n,
-                        found: v.len(),
-                        why: "one vector per robot",
-                    });
-                }
-                let mut out = Vec::with_capacity(n);
-                for (i, e) in v.iter().enumerate() {
-                    if e.len() != dim {
-                        return Err(ScenarioError::Dimension {
-                            key: format!("initial_estimates[{i}]"),
-                            expected: dim,
-                            found: e.len(),
-                            why: "the state dimension 2(n + m)",
-                        });
-                    }
-                    for (k, x) in e.iter().enumerate() {
-                        representable(&format!("initial_estimates[{i}][{k}]"), *x)?;
-                    }
-                    out.push(DVector::from_column_slice(e));
-                }
-                out
-            }
-        };
-        let p_star =
-            DVector::from_iterator(2 * n, self.desired.iter().flat_map(|p| p.iter().copied()));
-        let model = Model::new(
-            k1,
-            k2,
-            l_c,
-            l_plus,
-            l_f,
-            m,
-            sets,
-            p_star,
-            Vector2::new(self.centroid.start[0], self.centroid.start[1]),
-            Vector2::new(self.centroid.velocity[0], self.centroid.velocity[1]),
-        );
-        let observers = (0..n)
-            .map(|i| {
-                design_robot(&model, i, q, r[i])
-                    .map_err(|source| ScenarioError::Care { robot: i, source })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let mut resolved = self.clone();
-        resolved.kind = None;
-        resolved.schema = Some(SCHEMA.to_string());
-        resolved.observer.r = RSpec::PerRobot(r.clone());
-        resolved.initial_estimates = InitialEstimatesSpec::Explicit(
-            xhat0.iter().map(|v| v.iter().copied().collect()).collect(),
-        );
-        let scenario = Scenario {
-            name: self.name.clone(),
-            resolved,
-            model,
-            gamma,
-            q,
-            r,
-            x0,
-            xhat0,
+        Ok(Grid {
             step,
             steps,
             output_stride,
-            disturbance: self.disturbance.clone(),
-            observers,
-        };
-        let report = scenario.theorem1();
+        })
+    }
+}
+
+/// RK4 at `step` is stable on the formation dynamics `A = −(k₁/n) 11ᵀ − k₂ L_f` (⊗ I₂), whose
+/// eigenvalues are −k₁ and −k₂ λ(L_f) (and the observer design is meaningless past it).
+fn check_formation_step(
+    k1: f64,
+    k2: f64,
+    l_f: &DMatrix<f64>,
+    step: f64,
+) -> Result<(), ScenarioError> {
+    let rho_a = k1.max(k2 * l_f.symmetric_eigenvalues().amax());
+    if step * rho_a >= RK4_BOUND {
+        return Err(ScenarioError::Unstable {
+            h_rho: step * rho_a,
+            rho: rho_a,
+            what: "the formation dynamics (gains.k1, gains.k2)",
+            bound: RK4_BOUND / rho_a,
+        });
+    }
+    Ok(())
+}
+
+/// `disturbance`: every number representable and a window of positive length.
+fn check_disturbance(d: &Disturbance) -> Result<(), ScenarioError> {
+    for (key, v) in [
+        ("disturbance.start", d.start),
+        ("disturbance.end", d.end),
+        ("disturbance.omega_amplitude", d.omega_amplitude),
+        ("disturbance.omega_frequency", d.omega_frequency),
+        (
+            "disturbance.omega_phase_per_coordinate",
+            d.omega_phase_per_coordinate,
+        ),
+        ("disturbance.nu_amplitude", d.nu_amplitude),
+        ("disturbance.nu_frequency", d.nu_frequency),
+        ("disturbance.nu_phase_per_row", d.nu_phase_per_row),
+        ("disturbance.nu_phase_per_robot", d.nu_phase_per_robot),
+    ] {
+        representable(key, v)?;
+    }
+    positive("disturbance.end − disturbance.start", d.end - d.start)?;
+    Ok(())
+}
+
+impl Scenario {
+    /// The designed whole: the robots' unobservable subspaces do not intersect (Theorem 1's
+    /// `λ_min > 0`), and RK4 at the scenario's step is stable on the closed loop with the
+    /// observers.
+    fn check_design(&self) -> Result<(), ScenarioError> {
+        let report = self.theorem1();
         if report.lambda_min.is_nan() || report.lambda_min <= 1e-9 {
             return Err(ScenarioError::JointlyUnobservable {
                 lambda_min: report.lambda_min,
             });
         }
-        let rho = scenario.closed_loop_spectral_radius();
-        if rho.is_nan() || step * rho >= RK4_BOUND {
+        let rho = self.closed_loop_spectral_radius();
+        if rho.is_nan() || self.step * rho >= RK4_BOUND {
             return Err(ScenarioError::Unstable {
-                h_rho: step * rho,
+                h_rho: self.step * rho,
                 rho,
                 what: "the closed loop with the observers (gains.gamma, observer.q, observer.r)",
                 bound: RK4_BOUND / rho,
             });
         }
-        Ok(scenario)
+        Ok(())
     }
-}
 
-impl Scenario {
+    /// Name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The resolved spec (explicit initial estimates and per-robot `r`; `schema` set): what
+    /// `scenario.json` holds, and validates to the same scenario.
+    pub fn resolved(&self) -> &ScenarioSpec {
+        &self.resolved
+    }
+
+    /// The model (eqs. 12–17).
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Coupling gain `γ`.
+    pub fn gamma(&self) -> f64 {
+        self.gamma
+    }
+
+    /// `Q = q I`.
+    pub fn q(&self) -> f64 {
+        self.q
+    }
+
+    /// `R_i = r_i I`, one `r_i` per robot.
+    pub fn r(&self) -> &[f64] {
+        &self.r
+    }
+
+    /// True initial state `x(0)`.
+    pub fn x0(&self) -> &DVector<f64> {
+        &self.x0
+    }
+
+    /// Initial estimates `x̂_i(0)`, one per robot.
+    pub fn xhat0(&self) -> &[DVector<f64>] {
+        &self.xhat0
+    }
+
+    /// RK4 step `h` (s).
+    pub fn step(&self) -> f64 {
+        self.step
+    }
+
+    /// Number of RK4 steps.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Steps between outputs.
+    pub fn output_stride(&self) -> usize {
+        self.output_stride
+    }
+
+    /// Disturbances, if any.
+    pub fn disturbance(&self) -> Option<&Disturbance> {
+        self.disturbance.as_ref()
+    }
+
+    /// Per-robot observers (eqs. 18–20).
+    pub fn observers(&self) -> &[RobotObserver] {
+        &self.observers
+    }
+
     /// Number of robots.
     pub fn n(&self) -> usize {
         self.model.n

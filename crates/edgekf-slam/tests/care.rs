@@ -8,7 +8,7 @@ use edgekf_slam::observer::printed_care;
 #[test]
 fn care_solutions_are_verified() {
     let sc = common::scenario(common::FIG3);
-    for (i, ob) in sc.observers.iter().enumerate() {
+    for (i, ob) in sc.observers().iter().enumerate() {
         let c = &ob.care;
         // A backward-stable solve gives a relative residual of a small multiple of r·ε (r ≤ 12 here, ε = 2.2e-16);
         // 1e-13 allows a condition-number factor of ~40.
@@ -21,7 +21,7 @@ fn care_solutions_are_verified() {
         assert!(c.closed_loop_abscissa < 0.0, "robot {i}");
         // Recompute the residual independently from the stored matrices.
         let s = ob.h_bar.transpose() * ob.r.clone().try_inverse().unwrap() * &ob.h_bar;
-        let w = nalgebra::DMatrix::<f64>::identity(ob.a11.nrows(), ob.a11.nrows()) * sc.q;
+        let w = nalgebra::DMatrix::<f64>::identity(ob.a11.nrows(), ob.a11.nrows()) * sc.q();
         let res = &ob.a11 * &c.p + &c.p * ob.a11.transpose() + &w - &c.p * &s * &c.p;
         assert!(res.norm() < 1e-12, "robot {i}: {}", res.norm());
         // K_i = Z_i P̄ H̄ᵀ R⁻¹ lives in the observable subspace.
@@ -32,11 +32,11 @@ fn care_solutions_are_verified() {
 #[test]
 fn printed_care_has_imaginary_axis_eigenvalues() {
     let sc = common::scenario(common::FIG3);
-    for (i, ob) in sc.observers.iter().enumerate() {
-        let pc = printed_care(&sc.model, ob, sc.q);
+    for (i, ob) in sc.observers().iter().enumerate() {
+        let pc = printed_care(sc.model(), ob, sc.q());
         // Each of the 2c_i landmark coordinates of Ā¹¹ is a zero mode without noise weight: a pair of Hamiltonian
         // eigenvalues at 0 each. The tolerance is care::IMAG_AXIS_TOL·‖𝓗‖ (see its justification).
-        let c_i = sc.model.landmark_sets[i].len();
+        let c_i = sc.model().landmark_sets[i].len();
         assert_eq!(pc.on_axis, 2 * 2 * c_i, "robot {i}");
         assert!(
             pc.closest_eigenvalue.re.abs() < 1e-12 * pc.hamiltonian_norm,

@@ -39,7 +39,7 @@ fn every_estimate_converges_including_unseen_landmarks() {
         }
     }
     // Robot 1 never sees landmarks 0 and 4, robot 2 never sees 0, 1, 2: they learn them through consensus.
-    assert!(!sc.model.landmark_sets[1].contains(&0) && !sc.model.landmark_sets[2].contains(&0));
+    assert!(!sc.model().landmark_sets[1].contains(&0) && !sc.model().landmark_sets[2].contains(&0));
 }
 
 #[test]

@@ -21,11 +21,11 @@ fn rk4_step_and_half_step_agree() {
     for text in [common::FIG3, common::DISTURBED] {
         let sc = common::scenario(text);
         let full = simulate(&sc);
-        let half = simulate_with_step(&sc, sc.step / 2.0, 2 * sc.steps, 2 * sc.output_stride);
+        let half = simulate_with_step(&sc, sc.step() / 2.0, 2 * sc.steps(), 2 * sc.output_stride());
         // Claimed accuracy of the shipped h = 1e-3 s: 1e-9 m on every coordinate (README). With h ρ = 6e-3 (ρ = 6 /s) the RK4
         // global error is ~ (hρ)⁴ × O(10 m) ≈ 1e-8 at most; measured 4e-12.
         let d = max_diff(&full, &half);
-        assert!(d < 1e-9, "{}: {d}", sc.name);
+        assert!(d < 1e-9, "{}: {d}", sc.name());
     }
 }
 
@@ -38,8 +38,9 @@ fn rk4_shows_fourth_order() {
     spec.time.step = 0.02;
     spec.time.output_every = 0.1;
     let sc = spec.validate().unwrap();
-    let run =
-        |h: f64, mult: usize| simulate_with_step(&sc, h, sc.steps * mult, sc.output_stride * mult);
+    let run = |h: f64, mult: usize| {
+        simulate_with_step(&sc, h, sc.steps() * mult, sc.output_stride() * mult)
+    };
     let (a, b, c) = (run(0.02, 1), run(0.01, 2), run(0.005, 4));
     let ratio = max_diff(&a, &b) / max_diff(&b, &c);
     // Order p gives a ratio 2ᵖ = 16 asymptotically; ±25% accepts the pre-asymptotic regime at hρ ≈ 0.1.
@@ -59,6 +60,6 @@ fn simulated_error_matches_linear_error_dynamics() {
             .fold(0.0, f64::max);
         // Same RK4 grid on an exactly linear system: the two differ only by roundoff, which accumulates at most
         // linearly over 10⁴ steps: 1e4 · 4 stages · ε · scale ≈ 1e-11 · scale; 1e-10 · scale is the bound.
-        assert!(d < 1e-10 * scale, "{}: {d} (scale {scale})", sc.name);
+        assert!(d < 1e-10 * scale, "{}: {d} (scale {scale})", sc.name());
     }
 }

@@ -39,7 +39,7 @@ fn plus_one_over_delta_breaks_the_lyapunov_bound() {
     let sc = common::scenario(common::FIG3);
     let r = sc.theorem1();
     let blocks: Vec<_> = sc
-        .observers
+        .observers()
         .iter()
         .map(|o| &o.a11 - &o.k_bar * &o.h_bar)
         .collect();

@@ -230,11 +230,11 @@ fn unknown_keys_are_rejected_by_the_parser() {
 #[test]
 fn resolved_json_round_trips_bit_for_bit() {
     let sc = common::scenario(common::DISTURBED);
-    let json = serde_json::to_string_pretty(&sc.resolved).unwrap();
+    let json = serde_json::to_string_pretty(sc.resolved()).unwrap();
     let back: ScenarioSpec = serde_json::from_str(&json).unwrap();
-    assert_eq!(back, sc.resolved);
+    assert_eq!(&back, sc.resolved());
     let sc2 = back.validate().unwrap();
-    assert_eq!(sc2.resolved, sc.resolved);
+    assert_eq!(sc2.resolved(), sc.resolved());
     let (a, b) = (edgekf_slam::simulate(&sc), edgekf_slam::simulate(&sc2));
     for k in 0..a.times.len() {
         assert!(a.x[k]
