@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod framework;
+pub mod outdir;
 pub mod reproductions;
 
 use std::fmt::Write as _;
@@ -165,6 +166,14 @@ impl Staged {
         fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))
     }
 
+    /// The names of the files staged so far (for the provenance's list of files).
+    pub fn names(&self) -> Vec<String> {
+        self.files
+            .iter()
+            .filter_map(|(_, dest)| dest.file_name()?.to_str().map(String::from))
+            .collect()
+    }
+
     /// Moves every staged file into place.
     pub fn commit(mut self) -> Result<()> {
         for (tmp, dest) in std::mem::take(&mut self.files) {
@@ -209,6 +218,17 @@ pub struct Provenance {
     pub commit: String,
     /// The command line, one argument per entry.
     pub command: Vec<String>,
+    /// What the directory holds ([`outdir::StudyId`]): `study`, `shard`, `slam` or `framework`
+    /// (empty: not recorded).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub kind: String,
+    /// The study's (scenario's or framework's) `name` (empty: not recorded).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// Every file written into the directory with this provenance, itself included, sorted
+    /// (empty: not recorded, by an older edgekf). `edgekf report` shows only these.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
 }
 
 impl Provenance {
@@ -220,6 +240,9 @@ impl Provenance {
             version: env!("CARGO_PKG_VERSION").into(),
             commit: GIT_COMMIT.into(),
             command,
+            kind: String::new(),
+            name: String::new(),
+            files: Vec::new(),
         }
     }
     /// This process, with its command line.
