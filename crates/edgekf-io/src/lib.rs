@@ -132,30 +132,37 @@ pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec> {
     framework::spec_from_json(&text).map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
 }
 
-/// Files staged under temporary names in a directory and moved into place together once every
-/// one of them has been written; on drop, whatever was not committed is removed.
+/// Files staged in a hidden subdirectory of a directory ([`staging_dir`]) and moved into place
+/// together once every one of them has been written; on drop, whatever was not committed is
+/// removed with the subdirectory. (Once the subdirectory is gone no staged file can appear:
+/// `edgekf`'s Ctrl-C removes it while a figure may still be being encoded.)
 pub struct Staged {
     dir: PathBuf,
+    stage: PathBuf,
     files: Vec<(PathBuf, PathBuf)>,
+}
+
+/// The hidden subdirectory of `dir` where this process stages its files.
+pub fn staging_dir(dir: &Path) -> PathBuf {
+    dir.join(format!(".edgekf-staging-{}", std::process::id()))
 }
 
 impl Staged {
     /// Stages into `dir` (created if needed).
     pub fn new(dir: &Path) -> Result<Self> {
-        fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let stage = staging_dir(dir);
+        fs::create_dir_all(&stage).with_context(|| format!("cannot create {}", dir.display()))?;
         Ok(Self {
             dir: dir.to_path_buf(),
+            stage,
             files: Vec::new(),
         })
     }
 
-    /// The temporary path for `name` (for writers that need a path, such as the plots).
+    /// The temporary path for `name` (for writers that need a path, such as the plots; the
+    /// extension is kept: image encoders pick the format from it).
     pub fn path(&mut self, name: &str) -> PathBuf {
-        // Keep the extension last: image encoders pick the format from it.
-        let tmp = match name.rsplit_once('.') {
-            Some((stem, ext)) => self.dir.join(format!(".{stem}.tmp.{ext}")),
-            None => self.dir.join(format!(".{name}.tmp")),
-        };
+        let tmp = self.stage.join(name);
         self.files.push((tmp.clone(), self.dir.join(name)));
         tmp
     }
@@ -189,6 +196,7 @@ impl Drop for Staged {
         for (tmp, _) in &self.files {
             let _ = fs::remove_file(tmp);
         }
+        let _ = fs::remove_dir(&self.stage);
     }
 }
 
