@@ -747,9 +747,28 @@ pub fn is_study(dir: &Path) -> bool {
         && (dir.join("metrics.csv").is_file() || dir.join("team.csv").is_file())
 }
 
+/// The files of the study in `dir`: those its `provenance.json` lists, and the files derived
+/// from them later (`report.html`, `claims.json`); `None` when no provenance lists them (an
+/// older edgekf), then every file is taken.
+fn study_files(dir: &Path) -> Option<Vec<String>> {
+    let p = edgekf_io::outdir::provenance(dir)?;
+    if p.files.is_empty() {
+        return None;
+    }
+    let mut v = p.files;
+    v.extend(edgekf_io::outdir::DERIVED.iter().map(|s| s.to_string()));
+    Some(v)
+}
+
+/// Whether `file` in `dir` is one of the study's files (see [`study_files`]) and exists.
+fn of_study(dir: &Path, listed: Option<&[String]>, file: &str) -> bool {
+    listed.is_none_or(|l| l.iter().any(|f| f == file)) && dir.join(file).is_file()
+}
+
 /// The reproduction names whose figures this simulation draws (by its scenario name and the
 /// figures present), with their descriptions and figure stems.
 fn reproductions_of(dir: &Path, name: &str) -> Vec<&'static registry::Entry> {
+    let listed = study_files(dir);
     let sim = dir.file_name().and_then(|s| s.to_str()).unwrap_or("");
     registry::ENTRIES
         .iter()
@@ -760,7 +779,7 @@ fn reproductions_of(dir: &Path, name: &str) -> Vec<&'static registry::Entry> {
                 (e.simulation() == name || e.simulation() == sim)
                     && e.plots
                         .iter()
-                        .all(|p| dir.join(format!("{p}.png")).is_file())
+                        .all(|p| of_study(dir, listed.as_deref(), &format!("{p}.png")))
             }
         })
         .collect()
@@ -792,6 +811,9 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     };
     let name = sc.get("name").and_then(Value::as_str).unwrap_or("study");
     let reps = reproductions_of(dir, name);
+    // Only the files the study wrote: a directory may hold others (written by hand, or by an
+    // older edgekf into a reused directory); they are not this study's.
+    let listed = study_files(dir);
     let mut o = String::new();
     page_start(&format!("edgekf — {name}"), &mut o);
     let _ = writeln!(o, "<header><h1>{}</h1>", esc(name));
@@ -829,7 +851,7 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
             e.plots.iter().map(|p| format!("{p}.png")).collect()
         };
         for f in files {
-            if dir.join(&f).is_file() {
+            if of_study(dir, listed.as_deref(), &f) {
                 o.push_str(&img(dir, &f, &format!("{} ({f})", e.name))?);
                 drawn.push(f);
             }
@@ -841,6 +863,7 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
         .filter_map(|d| d.ok())
         .filter_map(|d| d.file_name().into_string().ok())
         .filter(|f| f.ends_with(".png") && !f.starts_with('.') && !drawn.contains(f))
+        .filter(|f| of_study(dir, listed.as_deref(), f))
         .collect();
     others.sort();
     if !others.is_empty() && !reps.is_empty() {
@@ -944,6 +967,9 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
 
     // Files.
     o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n<ul>\n");
+    if listed.is_none() {
+        o.push_str("<p class=\"note\">provenance.json does not list the study's files (written by an older edgekf): every file of the directory is shown, and some may be of another study.</p>\n");
+    }
     let mut files: Vec<(String, u64)> = fs::read_dir(dir)?
         .filter_map(|d| d.ok())
         .filter_map(|d| {
@@ -951,6 +977,7 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
             let len = d.metadata().ok()?.len();
             (!n.starts_with('.') && n != "report.html" && d.path().is_file()).then_some((n, len))
         })
+        .filter(|(n, _)| listed.as_ref().is_none_or(|l| l.contains(n)))
         .collect();
     files.sort();
     for (f, len) in &files {
