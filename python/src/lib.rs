@@ -24,12 +24,33 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArrayDyn,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyFileExistsError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+/// A Python exception for an error of the library or the files: `OSError` (with its errno, so
+/// Python raises `FileNotFoundError`, `PermissionError`, …) when the system refused a file or
+/// folder, `FileExistsError` when an output folder holds another study, else `ValueError`.
 fn value_err(e: anyhow::Error) -> PyErr {
-    PyValueError::new_err(format!("{e:#}"))
+    let msg = format!("{e:#}");
+    for cause in e.chain() {
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            return match io.raw_os_error() {
+                Some(code) => PyOSError::new_err((code, msg)),
+                None => PyOSError::new_err(msg),
+            };
+        }
+        if let Some(o) = cause.downcast_ref::<edgekf_io::outdir::OutDirError>() {
+            return match o {
+                edgekf_io::outdir::OutDirError::Io { source, .. } => match source.raw_os_error() {
+                    Some(code) => PyOSError::new_err((code, msg)),
+                    None => PyOSError::new_err(msg),
+                },
+                _ => PyFileExistsError::new_err(msg),
+            };
+        }
+    }
+    PyValueError::new_err(msg)
 }
 
 /// Loads a scenario: `text` of a file (`source` its path) or a JSON object from a dict.
@@ -299,8 +320,18 @@ impl PyRes {
     /// Writes the CLI's files into `dir` (created if missing), atomically: the tables, a sweep's
     /// `summary.csv` and `sweep_metrics.csv`, `provenance.json` (with `command`) and, when
     /// `figures`, the scenario's figures.
-    #[pyo3(signature = (dir, command, figures=true))]
-    fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool) -> PyResult<()> {
+    /// The folder must be new, empty, or hold this same study (its `provenance.json` names
+    /// it); with `force` it is emptied first (`edgekf_io::outdir`).
+    #[pyo3(signature = (dir, command, figures=true, force=false))]
+    fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool, force: bool) -> PyResult<()> {
+        use edgekf_io::outdir;
+        let id = outdir::StudyId::study(self.sc.name());
+        let hint = outdir::Hint {
+            out: "folder",
+            force: "force=True",
+        };
+        let prep = outdir::prepare(&dir, &id, force, hint)
+            .map_err(|e| value_err(anyhow::Error::new(e)))?;
         let mut st = edgekf_io::Staged::new(&dir).map_err(value_err)?;
         if let Some(sw) = &self.sweep {
             st.write("summary.csv", edgekf_io::summary_csv(sw).as_bytes())
@@ -313,11 +344,6 @@ impl PyRes {
             .map_err(value_err)?;
         }
         edgekf_io::stage_tables(&mut st, &self.sc, &self.res).map_err(value_err)?;
-        st.write(
-            "provenance.json",
-            edgekf_io::Provenance::new(command).to_json().as_bytes(),
-        )
-        .map_err(value_err)?;
         if figures {
             let extra = edgekf_figure::plot_garkf::Extra {
                 sweep: self.sweep.as_ref(),
@@ -326,7 +352,16 @@ impl PyRes {
             edgekf_figure::render_study(|f| st.path(f), &self.sc, &self.res, None, &extra)
                 .map_err(value_err)?;
         }
-        st.commit().map_err(value_err)
+        let mut names = st.names();
+        st.write(
+            "provenance.json",
+            outdir::provenance_json(command, &id, &names).as_bytes(),
+        )
+        .map_err(value_err)?;
+        names.push("provenance.json".into());
+        st.commit().map_err(value_err)?;
+        prep.finish(&names)
+            .map_err(|e| value_err(anyhow::Error::new(e)))
     }
     /// A sweep's `summary.csv` as text (`None` without a sweep).
     fn summary_csv(&self) -> Option<String> {
@@ -438,7 +473,9 @@ fn reproduce(
             "`{name}` is a study of the distributed SLAM observer; run it with the CLI (`edgekf reproduce {name}`)"
         )));
     }
-    let sc = e.scenario().map_err(PyValueError::new_err)?;
+    let sc = e
+        .scenario()
+        .map_err(|err| PyValueError::new_err(err.to_string()))?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;
@@ -709,7 +746,7 @@ impl EdgeBank {
 
 #[pymethods]
 impl EdgeBank {
-    /// `x0` (B, D), `p0` (B, D, D), `q`, `r` (B, D, D) or (D, D) for every edge.
+    /// `x0` (B, D); `p0`, `q`, `r` (B, D, D), or (D, D) for every edge.
     #[new]
     fn new(
         x0: PyReadonlyArrayDyn<'_, f64>,
@@ -725,11 +762,21 @@ impl EdgeBank {
         }
         let (b, d) = (s[0], s[1]);
         let x = flat(&x0, "x0", &[b, d])?;
-        let p = flat(&p0, "P0", &[b, d, d])?;
+        let p_shared = p0.shape() == [d, d];
+        let (p_one, p_each) = ([d, d], [b, d, d]);
+        let p = flat(&p0, "P0", if p_shared { &p_one[..] } else { &p_each[..] })?;
         let (q_shared, r_shared) = (q.shape() == [d, d], r.shape() == [d, d]);
         let (one, each) = ([d, d], [b, d, d]);
         let q = flat(&q, "Q", if q_shared { &one[..] } else { &each[..] })?;
         let r = flat(&r, "R", if r_shared { &one[..] } else { &each[..] })?;
+        // What no filter can use is refused here, naming the argument (and the edge), not at
+        // the first step: P0 and Q covariances (PSD), R the measurement's (PD: the update
+        // inverts P⁻ + R, which is then PD for any PSD P⁻).
+        ca::check_covs(&p, d, p_shared, "P0", false)?;
+        // Every edge starts from its own copy of a shared P0.
+        let p = if p_shared { p.repeat(b) } else { p };
+        ca::check_covs(&q, d, q_shared, "Q", false)?;
+        ca::check_covs(&r, d, r_shared, "R", true)?;
         Ok(Self {
             b,
             d,
