@@ -549,7 +549,7 @@ mod tests {
         let m = prepare(&d, &a, false, Hint::CLI).unwrap_err().to_string();
         assert!(m.contains("`notes.txt`"), "{m}");
         // --force empties it.
-        prepare(&d, &StudyId::study("other"), true, Hint::CLI).unwrap();
+        let _ = prepare(&d, &StudyId::study("other"), true, Hint::CLI).unwrap();
         assert!(fs::read_dir(&d).unwrap().next().is_none());
         // A directory without provenance: refused.
         fs::write(d.join("a.png"), "x").unwrap();
