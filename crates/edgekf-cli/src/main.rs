@@ -306,8 +306,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                     }
                     let id = StudyId::new("slam", &slam::study_name(&source, &text)?);
                     let prep = outdir::prepare(&out, &id, force, Hint::CLI)?;
-                    let mut st = interrupt::stage(&out)?;
-                    slam::run_text(&source, &text, &mut st, &out, over.json)?;
+                    let st = slam::run_text(&source, &text, &out, over.json)?;
                     commit(st, prep, &id)?;
                     Ok(ExitCode::SUCCESS)
                 }
@@ -892,8 +891,7 @@ fn reproduce(
     }
     for (e, (id, prep)) in slams.iter().zip(slam_prepared.iter_mut()) {
         let dir = out.join(e.name);
-        let mut st = interrupt::stage(&dir)?;
-        slam::run_text(e.file, e.text, &mut st, &dir, over.json)?;
+        let st = slam::run_text(e.file, e.text, &dir, over.json)?;
         let prep = prep.take().context("each SLAM study is prepared once")?;
         commit(st, prep, id)?;
         eprintln!("{:<16} {}", e.name, dir.display());

@@ -20,21 +20,15 @@ pub fn study_name(source: &str, text: &str) -> Result<String> {
 }
 
 /// Runs a SLAM scenario given as TOML (`kind = "slam"`) or as a resolved `scenario.json`
-/// (`"schema": "edgekf.slam/1"`, detected by a leading `{`), staging every output in `st` (the
-/// caller commits them into `out`, with `provenance.json`).
+/// (`"schema": "edgekf.slam/1"`, detected by a leading `{`), and stages every output for `out`;
+/// the caller commits them, with `provenance.json`.
 ///
-/// `source` names the input in error messages. Each output is staged under a temporary name and
-/// moved into place only when all of them are written, so an error leaves nothing under an
-/// output name.
+/// `source` names the input in error messages. Nothing is created before the scenario is valid
+/// and simulated; each output is staged under a temporary name and moved into place only when
+/// all of them are written, so an error leaves nothing under an output name.
 ///
 /// The design checks go to stderr (a log); the final summary to stdout, as JSON with `json`.
-pub fn run_text(
-    source: &str,
-    text: &str,
-    st: &mut edgekf_io::Staged,
-    out: &Path,
-    json: bool,
-) -> Result<()> {
+pub fn run_text(source: &str, text: &str, out: &Path, json: bool) -> Result<edgekf_io::Staged> {
     let spec = parse(source, text)?;
     let sc = spec.validate().map_err(|e| anyhow!("{source}: {e}"))?;
     eprint!("{}", design_report(source, &sc));
@@ -42,11 +36,16 @@ pub fn run_text(
     let traj = simulate(&sc);
     let elapsed = started.elapsed();
     let resolved = resolved_json(&sc)?;
+    let mut st = crate::interrupt::stage(out)?;
     st.write("scenario.json", resolved.as_bytes())?;
     st.write("robots.csv", robots_csv(&sc, &traj).as_bytes())?;
     st.write("team.csv", team_csv(&sc, &traj).as_bytes())?;
-    plot_staged(st, out, "paths.png", |p| slam_plot::paths(p, &sc, &traj))?;
-    plot_staged(st, out, "errors.png", |p| slam_plot::errors(p, &sc, &traj))?;
+    plot_staged(&mut st, out, "paths.png", |p| {
+        slam_plot::paths(p, &sc, &traj)
+    })?;
+    plot_staged(&mut st, out, "errors.png", |p| {
+        slam_plot::errors(p, &sc, &traj)
+    })?;
     if json {
         println!("{}", summary_json(&sc, &traj));
     } else {
@@ -56,7 +55,7 @@ pub fn run_text(
         "wrote {}/{{scenario.json, robots.csv, team.csv, paths.png, errors.png}}",
         out.display()
     );
-    Ok(())
+    Ok(st)
 }
 
 /// The final errors as JSON (for scripts).
@@ -338,9 +337,7 @@ mod tests {
 
     /// `run_text` into `out`, committed.
     fn run_into(source: &str, text: &str, out: &Path) -> Result<()> {
-        let mut st = edgekf_io::Staged::new(out)?;
-        run_text(source, text, &mut st, out, false)?;
-        st.commit()
+        run_text(source, text, out, false)?.commit()
     }
 
     /// A 1 s horizon keeps the test fast; exactness of the round trip does not depend on the horizon.
