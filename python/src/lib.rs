@@ -86,6 +86,54 @@ fn overrides(
     Ok(sc)
 }
 
+/// Available memory from `/proc/meminfo` (Linux), in bytes.
+fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// The limits of the CLI, checked before the work: time `max_hours` (`--max-hours`, default
+/// 1 h) and 80 % of the available memory; the message names the parameter that changes it.
+fn check_limits(what: &str, bytes: f64, seconds: f64, max_hours: f64, lower: &str) -> PyResult<()> {
+    use edgekf::sim::cost::{human_bytes, human_seconds};
+    if !(max_hours.is_finite() && max_hours > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "max_hours: must be a number of hours > 0, got {max_hours}"
+        )));
+    }
+    if let Some(avail) = available_memory() {
+        if bytes > 0.8 * avail {
+            return Err(PyValueError::new_err(format!(
+                "{what} needs about {} of memory but {} is available (the limit is 80 % of it); {lower}",
+                human_bytes(bytes),
+                human_bytes(avail)
+            )));
+        }
+    }
+    if seconds > max_hours * 3600.0 {
+        return Err(PyValueError::new_err(format!(
+            "{what} would take about {}; the limit is {max_hours} h (max_hours, default 1 h; raise it to run it anyway); {lower}",
+            human_seconds(seconds)
+        )));
+    }
+    Ok(())
+}
+
+/// [`check_limits`] of a study on `threads` workers (default: one per core).
+fn check_study(sc: &Scenario, threads: Option<usize>, max_hours: f64) -> PyResult<()> {
+    let t = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let c = sim::cost(sc, sc.runs(), t.max(1));
+    check_limits(
+        &format!("{}: this study", sc.name()),
+        c.bytes,
+        c.seconds,
+        max_hours,
+        "lower runs or steps, raise every, or drop the costliest estimator",
+    )
+}
+
 struct Obs {
     done: AtomicU64,
     stop: AtomicBool,
@@ -390,7 +438,7 @@ impl PyRes {
 
 /// Runs a scenario given as file text (`is_dict = False`) or as the JSON of a dict.
 #[pyfunction]
-#[pyo3(signature = (source, text, base, is_dict, runs=None, steps=None, every=None, seed=None, threads=None, progress=false))]
+#[pyo3(signature = (source, text, base, is_dict, runs=None, steps=None, every=None, seed=None, threads=None, progress=false, max_hours=1.0))]
 #[allow(clippy::too_many_arguments)]
 fn run_text(
     py: Python<'_>,
@@ -404,10 +452,12 @@ fn run_text(
     seed: Option<u64>,
     threads: Option<usize>,
     progress: bool,
+    max_hours: f64,
 ) -> PyResult<PyRes> {
     let sc = load(source, text, base.as_deref(), is_dict).map_err(value_err)?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|e| value_err(e.context(source.to_string())))?;
+    check_study(&sc, threads, max_hours)?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;
     Ok(PyRes { sc, res, sweep })
 }
@@ -451,7 +501,7 @@ fn reproductions() -> Vec<(
 
 /// Runs a reproduction of the registry with the CLI's overrides.
 #[pyfunction]
-#[pyo3(signature = (name, runs=None, steps=None, every=None, seed=None, threads=None, progress=false))]
+#[pyo3(signature = (name, runs=None, steps=None, every=None, seed=None, threads=None, progress=false, max_hours=1.0))]
 #[allow(clippy::too_many_arguments)]
 fn reproduce(
     py: Python<'_>,
@@ -462,6 +512,7 @@ fn reproduce(
     seed: Option<u64>,
     threads: Option<usize>,
     progress: bool,
+    max_hours: f64,
 ) -> PyResult<PyRes> {
     let e = edgekf_io::reproductions::find(name).ok_or_else(|| {
         PyValueError::new_err(format!(
@@ -478,6 +529,7 @@ fn reproduce(
         .map_err(|err| PyValueError::new_err(err.to_string()))?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
+    check_study(&sc, threads, max_hours)?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;
     Ok(PyRes { sc, res, sweep })
 }
@@ -499,7 +551,8 @@ fn dim_of(config: &[Vec<f64>]) -> PyResult<usize> {
 
 /// Designs weights; returns the `edgekf.framework/1` document as JSON text.
 #[pyfunction]
-#[pyo3(signature = (config, edges, method, leaders, leader_mode, name))]
+#[pyo3(signature = (config, edges, method, leaders, leader_mode, name, max_hours=1.0))]
+#[allow(clippy::too_many_arguments)]
 fn design_json(
     py: Python<'_>,
     config: Vec<Vec<f64>>,
@@ -508,8 +561,28 @@ fn design_json(
     leaders: Option<Vec<usize>>,
     leader_mode: Option<&str>,
     name: &str,
+    max_hours: f64,
 ) -> PyResult<String> {
     let method: Method = method.parse().map_err(PyValueError::new_err)?;
+    let c = design::cost::estimate(
+        config.len(),
+        config.first().map_or(0, Vec::len),
+        edges.len() as f64,
+        design::cost::Generation::Given,
+        method,
+    );
+    check_limits(
+        &format!(
+            "the design of {:?} ({} agents, {} candidate links)",
+            name,
+            config.len(),
+            edges.len()
+        ),
+        c.bytes,
+        c.seconds,
+        max_hours,
+        "thin the candidate links, or use method=\"yang\"",
+    )?;
     let mode: Option<LeaderMode> = match leader_mode {
         Some(m) => Some(m.parse().map_err(PyValueError::new_err)?),
         None => None,

@@ -132,3 +132,22 @@ def test_save_never_mixes_two_studies(tmp_path, small):
         res2.save(out, figures=False)
     res2.save(out, figures=False, force=True)
     assert json.loads((out / "provenance.json").read_text())["name"] == "other"
+
+
+def test_a_study_or_design_past_the_limits_is_refused_before_it_starts(small):
+    import time
+
+    t = time.monotonic()
+    with pytest.raises(ValueError, match=r"^small: this study would take about .*max_hours, default 1 h"):
+        edgekf.run(small, steps=4_000_000_000, every=4_000_000_000, runs=50)
+    with pytest.raises(ValueError, match=r"max_hours"):
+        edgekf.reproduce("eusipco-fig4b", steps=4_000_000_000, every=4_000_000_000)
+    with pytest.raises(ValueError, match=r"^max_hours: must be a number of hours > 0"):
+        edgekf.run(small, runs=2, steps=10, max_hours=0)
+    # 3 000 agents: the dense checks alone (O(N³)) are past a tiny limit.
+    n = 3000
+    config = np.random.default_rng(1).random((n, 2)) * 50
+    edges = np.array([(i, j) for i in range(n) for j in range(i + 1, min(n, i + 4))])
+    with pytest.raises(ValueError, match=r"^the design of .*max_hours"):
+        edgekf.design(config, edges, method="sparse", max_hours=1e-6)
+    assert time.monotonic() - t < 10

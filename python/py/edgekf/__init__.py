@@ -289,6 +289,7 @@ def run(
     threads: Optional[int] = None,
     every: Optional[int] = None,
     progress: bool = False,
+    max_hours: float = 1.0,
 ) -> Result:
     """Runs the Monte Carlo study of a scenario, as ``edgekf run`` does.
 
@@ -303,6 +304,10 @@ def run(
         Worker threads (default: one per core), the CLI's ``--threads``.
     progress
         Print the progress to stderr.
+    max_hours
+        Refuse a study estimated to take longer (the CLI's ``--max-hours``, default 1 h);
+        one that needs more than 80 % of the available memory is refused too. Both are
+        checked before the run starts.
 
     The GIL is released during the run; Ctrl-C (``KeyboardInterrupt``) stops it cleanly.
 
@@ -336,6 +341,7 @@ def run(
             seed=seed,
             threads=threads,
             progress=progress,
+            max_hours=float(max_hours),
         ),
         None
         if is_dict
@@ -363,14 +369,14 @@ def list_reproductions() -> List[Dict[str, Any]]:
     ]
 
 
-_OVERRIDES = ("runs", "steps", "seed", "every", "threads", "progress")
+_OVERRIDES = ("runs", "steps", "seed", "every", "threads", "progress", "max_hours")
 
 
 def reproduce(name: str, **overrides: Any) -> Result:
     """Runs the simulation behind a figure of the papers (``edgekf reproduce NAME``).
 
-    ``overrides``: ``runs``, ``steps``, ``seed``, ``every``, ``threads``, ``progress``, as for
-    :func:`run`. SLAM studies run with the CLI only.
+    ``overrides``: ``runs``, ``steps``, ``seed``, ``every``, ``threads``, ``progress``,
+    ``max_hours``, as for :func:`run`. SLAM studies run with the CLI only.
     """
     bad = sorted(set(overrides) - set(_OVERRIDES))
     if bad:
@@ -380,7 +386,9 @@ def reproduce(name: str, **overrides: Any) -> Result:
     for k in ("runs", "steps", "every", "threads", "seed"):
         if k in overrides:
             overrides[k] = _count(k, overrides[k], minimum=0 if k == "seed" else 1)
-    kw = {k: v for k, v in overrides.items() if k not in ("threads", "progress")}
+    if "max_hours" in overrides:
+        overrides["max_hours"] = float(overrides["max_hours"])
+    kw = {k: v for k, v in overrides.items() if k not in ("threads", "progress", "max_hours")}
     return Result(_edgekf.reproduce(name, **overrides), _call("reproduce", repr(name), **kw))
 
 
@@ -410,6 +418,7 @@ def design(
     leaders: Union[None, Sequence[int], str] = None,
     leader_mode: str = "clique",
     name: str = "python",
+    max_hours: float = 1.0,
 ) -> Dict[str, Any]:
     """Designs stress weights for a framework (``edgekf design``).
 
@@ -419,7 +428,8 @@ def design(
 
     Returns the ``edgekf.framework/1`` document with ``weights`` (``edges`` reduced to the links
     with a nonzero weight). Raises ``ValueError`` when the input is malformed or infeasible (the
-    failed condition named).
+    failed condition named), or when the design is estimated to take longer than ``max_hours``
+    (default 1 h, as ``edgekf design --max-hours``) or more than 80 % of the available memory.
     """
     mode = None
     lead: Optional[List[int]] = None
@@ -430,7 +440,7 @@ def design(
     elif leaders is not None:
         lead = [int(i) for i in leaders]
     doc = _edgekf.design_json(
-        _config_list(config), _edges_list(edges), method, lead, mode, name
+        _config_list(config), _edges_list(edges), method, lead, mode, name, float(max_hours)
     )
     return json.loads(doc)
 

@@ -58,6 +58,7 @@ def run(
     threads: Count = ...,
     every: Count = ...,
     progress: bool = ...,
+    max_hours: Real = ...,
 ) -> Result:
     """Runs a scenario as `edgekf run` does; ValueError with the CLI's message on bad input
     (naming the parameter for a count or seed out of range), FileNotFoundError for a missing
@@ -74,6 +75,7 @@ def reproduce(
     every: Count = ...,
     threads: Count = ...,
     progress: bool = ...,
+    max_hours: Real = ...,
 ) -> Result: ...
 def design(
     config: npt.ArrayLike,
@@ -83,6 +85,7 @@ def design(
     leaders: Union[None, Sequence[int], str] = ...,
     leader_mode: str = ...,
     name: str = ...,
+    max_hours: Real = ...,
 ) -> Dict[str, Any]:
     """Stress weights by the thesis SDP (3.5), Yang et al. 2019, or the sparse design."""
 
