@@ -966,10 +966,11 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     );
 
     // Files.
-    o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n<ul>\n");
+    o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n");
     if listed.is_none() {
         o.push_str("<p class=\"note\">provenance.json does not list the study's files (written by an older edgekf): every file of the directory is shown, and some may be of another study.</p>\n");
     }
+    o.push_str("<ul>\n");
     let mut files: Vec<(String, u64)> = fs::read_dir(dir)?
         .filter_map(|d| d.ok())
         .filter_map(|d| {
