@@ -153,6 +153,14 @@ fn report_shows_only_the_studys_own_files() {
         !page.contains("eusipco-fig4a"),
         "a stray figure is not the study's"
     );
+    // A directory of an older edgekf (no list of files): every file is shown, with a note.
+    let mut p = provenance(&out);
+    p.as_object_mut().unwrap().remove("files");
+    fs::write(out.join("provenance.json"), p.to_string()).unwrap();
+    let o = edgekf(&["report", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", err(&o));
+    let page = fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(page.contains("eusipco-fig4a") && page.contains("does not list the study's files"));
 }
 
 #[test]
