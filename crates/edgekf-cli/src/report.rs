@@ -1108,8 +1108,9 @@ pub fn write_index(root: &Path, pages: &[PathBuf]) -> Result<PathBuf> {
 /// # Errors
 /// When `DIR` holds neither a study nor study subdirectories, or a page cannot be written.
 pub fn run(dir: &Path) -> Result<Vec<PathBuf>> {
+    let page = |d: &Path| crate::interrupt::critical(&d.join("report.html"), || write_page(d));
     if is_study(dir) {
-        return Ok(vec![write_page(dir)?]);
+        return Ok(vec![page(dir)?]);
     }
     let mut subs: Vec<PathBuf> = fs::read_dir(dir)
         .with_context(|| format!("cannot read {}", dir.display()))?
@@ -1126,9 +1127,9 @@ pub fn run(dir: &Path) -> Result<Vec<PathBuf>> {
     }
     let mut pages = Vec::new();
     for s in &subs {
-        pages.push(write_page(s)?);
+        pages.push(page(s)?);
     }
-    let index = write_index(dir, &pages)?;
+    let index = crate::interrupt::critical(&dir.join("index.html"), || write_index(dir, &pages))?;
     pages.push(index);
     Ok(pages)
 }
