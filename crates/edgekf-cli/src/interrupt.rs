@@ -28,11 +28,18 @@ struct Log {
     written: Vec<PathBuf>,
     /// Directories being written: (directory, whether it existed before).
     staging: Vec<(PathBuf, bool)>,
+    /// Child processes (`edgekf swarm`): asked to stop, then killed.
+    children: Vec<u32>,
+    /// Paths a killed child may leave (its staging directory, logs): removed after it ended;
+    /// with `true`, only when empty.
+    leftovers: Vec<(PathBuf, bool)>,
 }
 
 static LOG: Mutex<Log> = Mutex::new(Log {
     written: Vec::new(),
     staging: Vec::new(),
+    children: Vec::new(),
+    leftovers: Vec::new(),
 });
 
 fn log() -> std::sync::MutexGuard<'static, Log> {
@@ -99,6 +106,16 @@ fn watch(fd: libc::c_int) {
     INTERRUPTED.store(true, Ordering::SeqCst);
     // Held until the process ends: a commit under way finishes first, none starts after.
     let log = log();
+    stop_children(&log.children);
+    for (path, only_empty) in &log.leftovers {
+        if *only_empty {
+            let _ = fs::remove_dir(path);
+        } else if path.is_dir() {
+            let _ = fs::remove_dir_all(path);
+        } else {
+            let _ = fs::remove_file(path);
+        }
+    }
     for (dir, existed) in &log.staging {
         // A figure may still be being encoded into the staging directory: once the directory
         // is gone, no staged file can appear (a file created between the listing and the
@@ -139,6 +156,50 @@ fn watch(fd: libc::c_int) {
         libc::write(2, msg.as_ptr().cast(), msg.len());
         libc::_exit(130);
     }
+}
+
+/// Asks the children to stop (SIGINT: a world finishes a commit under way and removes its
+/// staged files), waits up to 3 s, then kills those still running (SIGKILL) and reaps them.
+fn stop_children(children: &[u32]) {
+    let pids: Vec<libc::pid_t> = children.iter().filter_map(|&p| p.try_into().ok()).collect();
+    for &p in &pids {
+        // SAFETY: kill(2) on a pid of our own child.
+        unsafe {
+            libc::kill(p, libc::SIGINT);
+        }
+    }
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(3);
+    let mut alive = pids;
+    while !alive.is_empty() && std::time::Instant::now() < deadline {
+        // SAFETY: waitpid(2) with WNOHANG on our own children; a null status pointer is allowed.
+        alive.retain(|&p| unsafe { libc::waitpid(p, std::ptr::null_mut(), libc::WNOHANG) } == 0);
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    for p in alive {
+        // SAFETY: as above.
+        unsafe {
+            libc::kill(p, libc::SIGKILL);
+            libc::waitpid(p, std::ptr::null_mut(), 0);
+        }
+    }
+}
+
+/// Registers a child process: Ctrl-C stops it before this process ends.
+#[cfg_attr(not(feature = "swarm"), allow(dead_code))]
+pub fn child(pid: u32) {
+    log().children.push(pid);
+}
+
+/// Registers a path (a directory or a file) that Ctrl-C removes once the children are stopped.
+#[cfg_attr(not(feature = "swarm"), allow(dead_code))]
+pub fn remove_on_interrupt(path: &Path) {
+    log().leftovers.push((path.to_path_buf(), false));
+}
+
+/// Registers a directory that Ctrl-C removes once the children are stopped, if it is empty.
+#[cfg_attr(not(feature = "swarm"), allow(dead_code))]
+pub fn remove_if_empty_on_interrupt(path: &Path) {
+    log().leftovers.push((path.to_path_buf(), true));
 }
 
 /// The hidden temporaries of the writes that do not stage (`.NAME.PID.tmp`, written inside a

@@ -9,7 +9,9 @@
 //! - `edgekf bench`: closed-loop speed per estimator and the wall time of `reproduce`;
 //! - `edgekf report DIR`: a self-contained HTML page per study (and an index for a `reproduce`
 //!   output root);
-//! - `edgekf claims`: the papers' claims checked on the reproductions (`edgekf-claims`).
+//! - `edgekf claims`: the papers' claims checked on the reproductions (`edgekf-claims`);
+//! - `edgekf agent`, `edgekf world`, `edgekf swarm` (feature `swarm`): the agents as processes
+//!   over Zenoh (`edgekf-swarm`).
 //!
 //! Results go to files (written atomically, only after the study succeeded) and a short summary
 //! to stdout; logs and progress go to stderr.
@@ -22,6 +24,8 @@ mod io;
 mod report;
 mod slam;
 mod summary;
+#[cfg(feature = "swarm")]
+mod swarm;
 use edgekf_figure as figure;
 use edgekf_figure::{plot, plot_garkf};
 
@@ -139,6 +143,19 @@ enum Command {
     /// Check the papers' claims on the reproductions: a table (or JSON) with each claim, the
     /// paper's value, ours ± its standard error, and the verdict.
     Claims(claims::ClaimsArgs),
+    /// One agent as a process over Zenoh (feature `swarm`): its measurements from the world,
+    /// its neighbours' messages over the mesh, its control input back to the world.
+    #[cfg(feature = "swarm")]
+    Agent(swarm::AgentArgs),
+    /// The simulated world as a process over Zenoh (feature `swarm`): true positions, the
+    /// agents' noisy measurements, their inputs integrated; writes the files of `edgekf run`
+    /// and network.csv.
+    #[cfg(feature = "swarm")]
+    World(swarm::WorldArgs),
+    /// The world and one process per agent on this machine (feature `swarm`), with real
+    /// departures (`--kill AGENT@SECONDS`).
+    #[cfg(feature = "swarm")]
+    Swarm(swarm::SwarmArgs),
 }
 
 /// `--max-hours` by default: a study (or a design) estimated to take longer is refused before it
@@ -420,6 +437,12 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
         Command::Bench(args) => bench::run(&args).map(|()| ExitCode::SUCCESS),
         Command::Design(args) => design::run(&args).map(|()| ExitCode::SUCCESS),
         Command::Claims(args) => claims::run(&args).map(|()| ExitCode::SUCCESS),
+        #[cfg(feature = "swarm")]
+        Command::Agent(args) => swarm::agent(&args),
+        #[cfg(feature = "swarm")]
+        Command::World(args) => swarm::world(&args),
+        #[cfg(feature = "swarm")]
+        Command::Swarm(args) => swarm::swarm(&args),
     }
 }
 
@@ -605,7 +628,9 @@ fn fit_ar(
 /// `allow_divergence` before it is checked, so it lifts the load-time stability refusal exactly
 /// as the key does; without it, a refusal that the key would lift names the flag too.
 fn load(source: &str, text: &str, base: Option<&Path>, over: &Overrides) -> Result<Scenario> {
-    load_with(source, text, over, &|t| Ok(io::load_scenario(source, t, base)?))
+    load_with(source, text, over, &|t| {
+        Ok(io::load_scenario(source, t, base)?)
+    })
 }
 
 /// [`load`] with the scenario text parsed and checked by `parse`.
@@ -701,7 +726,13 @@ fn stage_outputs(
         )?;
     }
     edgekf_io::stage_tables(st, sc, res)?;
-    Ok(figure::render_study(|file| st.path(file), sc, res, plots, extra)?)
+    Ok(figure::render_study(
+        |file| st.path(file),
+        sc,
+        res,
+        plots,
+        extra,
+    )?)
 }
 
 fn merge(parts: &[PathBuf], out: &Path, json: bool, force: bool) -> Result<ExitCode> {
@@ -786,7 +817,11 @@ fn reproduce(
                 continue;
             }
             let sc = load_with(file, text, over, &|t| {
-                Ok(io::load_scenario_with(file, t, &registry::embedded_framework)?)
+                Ok(io::load_scenario_with(
+                    file,
+                    t,
+                    &registry::embedded_framework,
+                )?)
             })?;
             check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
             files.push((file, sc));

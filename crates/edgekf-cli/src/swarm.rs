@@ -22,6 +22,8 @@ use edgekf_swarm::agent_node::{run_agent, AgentOptions};
 use edgekf_swarm::world_node::{run_world, WorldOptions, WorldOutcome};
 use edgekf_swarm::{Endpoints, Mode};
 
+use edgekf_io::outdir::{self, Hint, StudyId};
+
 use crate::{interrupt, Overrides};
 
 /// How the world steps.
@@ -80,7 +82,9 @@ pub struct NetArgs {
 fn seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 && v <= 86_400.0 => Ok(v),
-        _ => Err(format!("must be a number of seconds in (0, 86400], got `{s}`")),
+        _ => Err(format!(
+            "must be a number of seconds in (0, 86400], got `{s}`"
+        )),
     }
 }
 
@@ -207,6 +211,10 @@ pub struct SwarmArgs {
     /// The mesh may lose messages (see `edgekf agent --help`).
     #[arg(long)]
     pub lossy: bool,
+    /// Agents may leave (a process killed from outside, e.g. `kill -9`): presence is tracked
+    /// every step (implied by --kill, --lossy and --mode realtime).
+    #[arg(long)]
+    pub live: bool,
     /// How long a lossy lockstep agent waits for a neighbour's message, in ms.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(0..=60_000))]
     pub grace_ms: u64,
@@ -236,7 +244,8 @@ fn scenario(path: &Path, over: &Overrides) -> Result<Scenario> {
     if over.runs.is_some_and(|r| r != 1) {
         bail!("flag `--runs`: a swarm is one run (run 0 of `edgekf run`); run several swarms with different --seed for more");
     }
-    let text = fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text =
+        fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut over = over.clone();
     over.runs = Some(1);
     crate::load(&path.display().to_string(), &text, path.parent(), &over)
@@ -267,13 +276,10 @@ pub fn agent(args: &AgentArgs) -> Result<ExitCode> {
 /// As [`run_world`], and the outputs' writing.
 pub fn world(args: &WorldArgs) -> Result<ExitCode> {
     let sc = scenario(&args.scenario, &args.over)?;
-    for def in sc.estimators() {
-        edgekf::agent::Agent::new(&sc, 0, false)
-            .with_context(|| format!("{}: estimator `{}`", args.scenario.display(), def.label()))?;
-        break;
-    }
-    let id = edgekf_io::outdir::StudyId::new("swarm", sc.name());
-    let prep = edgekf_io::outdir::prepare(&args.out, &id, args.force, crate::Hint::CLI)?;
+    edgekf::agent::Agent::new(&sc, 0, false)
+        .with_context(|| args.scenario.display().to_string())?;
+    let id = StudyId::new("swarm", sc.name());
+    let prep = outdir::prepare(&args.out, &id, args.force, Hint::CLI)?;
     let o = WorldOptions {
         endpoints: args.net.endpoints(),
         mode: args.net.mode(),
@@ -362,7 +368,10 @@ fn free_udp_base(n: usize) -> Result<u16> {
 fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child> {
     let err = fs::File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
     let mut cmd = Command::new(exe);
-    cmd.args(args).stdin(Stdio::null()).stdout(stdout).stderr(err);
+    cmd.args(args)
+        .stdin(Stdio::null())
+        .stdout(stdout)
+        .stderr(err);
     // SAFETY: prctl(2) in the child before exec, async-signal-safe.
     unsafe {
         cmd.pre_exec(|| {
@@ -407,18 +416,77 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
     let n = sc.framework().agents();
     edgekf::agent::Agent::new(&sc, 0, false)
         .with_context(|| format!("{}", args.scenario.display()))?;
+    let kills = kill_steps(&args.kill, &sc)?;
+    if !args.force {
+        // Refused now, before any process starts (the world empties it with --force).
+        let _unchanged = outdir::prepare(
+            &args.out,
+            &StudyId::new("swarm", sc.name()),
+            false,
+            Hint::CLI,
+        )?;
+    }
+    let out_existed = args.out.exists();
+    let exe = std::env::current_exe().context("cannot find this program's executable")?;
+    let logs = std::env::temp_dir().join(format!("edgekf-swarm-{}", std::process::id()));
+    fs::create_dir_all(&logs).with_context(|| format!("cannot create {}", logs.display()))?;
+    interrupt::remove_on_interrupt(&logs);
+    let (world_args, agent_args) = child_args(args, n)?;
+    let started = Instant::now();
+    let mut world = spawn(&exe, &world_args, Stdio::piped(), &logs.join("world.log"))?;
+    interrupt::remove_on_interrupt(&edgekf_io::staging_dir_of(&args.out, world.id()));
+    if !out_existed {
+        interrupt::remove_if_empty_on_interrupt(&args.out);
+    }
+    let mut agents: Vec<Option<Child>> = Vec::with_capacity(n);
+    for (i, a) in agent_args.iter().enumerate() {
+        agents.push(Some(spawn(
+            &exe,
+            a,
+            Stdio::null(),
+            &logs.join(format!("agent-{i}.log")),
+        )?));
+    }
+    let live = args.live || !kills.is_empty() || args.lossy || args.mode == ModeArg::Realtime;
+    let run = supervise(&mut world, &mut agents, (&kills, live), &logs);
+    for a in agents.iter_mut().flatten() {
+        let _ = a.kill();
+        let _ = a.wait();
+    }
+    let _ = world.kill();
+    let _ = world.wait();
+    if let Ok(peak) = &run {
+        print_memory(peak, started);
+    }
+    let _ = fs::remove_dir_all(&logs);
+    run?;
+    if args.report {
+        crate::report::write_page(&args.out)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `--kill AGENT@SECONDS` as steps, checked against the scenario.
+fn kill_steps(kill: &[(usize, f64)], sc: &Scenario) -> Result<BTreeMap<usize, usize>> {
+    let n = sc.framework().agents();
     let horizon = sc.steps() as f64 * sc.dt();
-    let mut kills: BTreeMap<usize, usize> = BTreeMap::new();
-    for &(a, t) in &args.kill {
+    let mut kills = BTreeMap::new();
+    for &(a, t) in kill {
         if a >= n {
-            bail!("flag `--kill {a}@{t}`: agent {a} is out of range: the scenario has agents 0..{n}");
+            bail!(
+                "flag `--kill {a}@{t}`: agent {a} is out of range: the scenario has agents 0..{n}"
+            );
         }
         if t >= horizon {
             bail!("flag `--kill {a}@{t}`: {t} s is at or past the end of the run ({horizon} s)");
         }
         kills.insert(a, ((t / sc.dt()).floor() as usize).max(1));
     }
-    edgekf_io::outdir::check(&args.out, &edgekf_io::outdir::StudyId::new("swarm", sc.name()), args.force)?;
+    Ok(kills)
+}
+
+/// The command lines of the world and of each agent: fresh endpoints on loopback.
+fn child_args(args: &SwarmArgs, n: usize) -> Result<(Vec<String>, Vec<Vec<String>>)> {
     let net = NetArgs {
         swarm: format!("swarm-{}", std::process::id()),
         world: format!("tcp/127.0.0.1:{}", free_tcp_port()?),
@@ -429,60 +497,49 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
         period_ms: args.period_ms,
         lossy: args.lossy,
         grace_ms: args.grace_ms,
-        live: !args.kill.is_empty(),
+        live: args.live || !args.kill.is_empty(),
         timeout_s: args.timeout_s,
     };
-    let exe = std::env::current_exe().context("cannot find this program's executable")?;
-    let logs = std::env::temp_dir().join(format!("edgekf-swarm-{}", std::process::id()));
-    fs::create_dir_all(&logs).with_context(|| format!("cannot create {}", logs.display()))?;
-    interrupt::remove_on_interrupt(&logs);
     let scenario_arg = args.scenario.display().to_string();
     let mut common = net.to_args();
     common.extend(over_args(&args.over));
-    let mut world_args = vec!["world".into(), scenario_arg.clone(), "--out".into()];
-    world_args.push(args.out.display().to_string());
-    world_args.push("--progress-lines".into());
+    let mut world = vec!["world".into(), scenario_arg.clone(), "--out".into()];
+    world.push(args.out.display().to_string());
+    world.push("--progress-lines".into());
     if args.force {
-        world_args.push("--force".into());
+        world.push("--force".into());
     }
     if let Some(cmd) = &args.after_ready {
-        world_args.extend(["--after-ready".into(), cmd.clone()]);
+        world.extend(["--after-ready".into(), cmd.clone()]);
     }
-    world_args.extend(common.clone());
-    let started = Instant::now();
-    let mut world = spawn(&exe, &world_args, Stdio::piped(), &logs.join("world.log"))?;
-    interrupt::remove_on_interrupt(&edgekf_io::staging_dir_of(&args.out, world.id()));
-    let mut agents: Vec<Option<Child>> = Vec::with_capacity(n);
-    for i in 0..n {
-        let mut a = vec!["agent".into(), scenario_arg.clone(), "--id".into(), i.to_string()];
-        a.extend(common.clone());
-        agents.push(Some(spawn(&exe, &a, Stdio::null(), &logs.join(format!("agent-{i}.log")))?));
+    world.extend(common.clone());
+    let agents = (0..n)
+        .map(|i| {
+            let mut a = vec![
+                "agent".into(),
+                scenario_arg.clone(),
+                "--id".into(),
+                i.to_string(),
+            ];
+            a.extend(common.clone());
+            a
+        })
+        .collect();
+    Ok((world, agents))
+}
+
+/// The agents' peak memory and the swarm's wall time, on stderr.
+fn print_memory(peak: &[Option<f64>], started: Instant) {
+    let peaks: Vec<f64> = peak.iter().flatten().copied().collect();
+    if !peaks.is_empty() {
+        let mean = peaks.iter().sum::<f64>() / peaks.len() as f64;
+        let max = peaks.iter().copied().fold(0.0, f64::max);
+        eprintln!(
+            "memory per agent process: peak RSS {mean:.1} MB on average, {max:.1} MB at most ({} processes); wall time {:.1} s",
+            peaks.len(),
+            started.elapsed().as_secs_f64()
+        );
     }
-    let run = supervise(&mut world, &mut agents, &kills, &logs);
-    for a in agents.iter_mut().flatten() {
-        let _ = a.kill();
-        let _ = a.wait();
-    }
-    let _ = world.kill();
-    let _ = world.wait();
-    let result = run.map(|peak| {
-        let peaks: Vec<f64> = peak.into_iter().flatten().collect();
-        if !peaks.is_empty() {
-            let mean = peaks.iter().sum::<f64>() / peaks.len() as f64;
-            let max = peaks.iter().copied().fold(0.0, f64::max);
-            eprintln!(
-                "memory per agent process: peak RSS {mean:.1} MB on average, {max:.1} MB at most ({} processes); wall time {:.1} s",
-                peaks.len(),
-                started.elapsed().as_secs_f64()
-            );
-        }
-    });
-    let _ = fs::remove_dir_all(&logs);
-    result?;
-    if args.report {
-        crate::report::write_page(&args.out)?;
-    }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// The overrides as flags for the children.
@@ -507,7 +564,7 @@ fn over_args(o: &Overrides) -> Vec<String> {
 fn supervise(
     world: &mut Child,
     agents: &mut [Option<Child>],
-    kills: &BTreeMap<usize, usize>,
+    (kills, live): (&BTreeMap<usize, usize>, bool),
     logs: &Path,
 ) -> Result<Vec<Option<f64>>> {
     let (tx, rx) = mpsc::channel::<String>();
@@ -526,6 +583,9 @@ fn supervise(
             Ok(line) => match line.strip_prefix("progress ") {
                 Some(k) => {
                     let k: usize = k.trim().parse().unwrap_or(0);
+                    if k == 1 {
+                        eprintln!("edgekf swarm: {} agents ready; stepping", agents.len());
+                    }
                     for (&a, &at) in kills {
                         if k + 1 >= at {
                             if let Some(mut c) = agents[a].take() {
@@ -548,7 +608,7 @@ fn supervise(
                     }
                 }
                 if status.success() {
-                    wait_agents(agents, logs)?;
+                    wait_agents(agents, logs, live)?;
                     return Ok(peak);
                 }
                 bail!("{}", failure(agents, logs));
@@ -565,14 +625,16 @@ fn supervise(
     }
 }
 
-/// The agents end after the world's stop; one that fails is named.
-fn wait_agents(agents: &mut [Option<Child>], logs: &Path) -> Result<()> {
+/// The agents end after the world's stop; one that fails is named (in a live swarm, one
+/// killed by a signal departed: the world has its row).
+fn wait_agents(agents: &mut [Option<Child>], logs: &Path, live: bool) -> Result<()> {
+    use std::os::unix::process::ExitStatusExt as _;
     let deadline = Instant::now() + Duration::from_secs(10);
     for (i, a) in agents.iter_mut().enumerate() {
         let Some(c) = a else { continue };
         loop {
             match c.try_wait()? {
-                Some(s) if s.success() => break,
+                Some(s) if s.success() || (live && s.signal().is_some()) => break,
                 Some(s) => bail!(
                     "agent {i} failed ({s}):\n  {}",
                     tail(&logs.join(format!("agent-{i}.log")))

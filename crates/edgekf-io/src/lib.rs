@@ -311,7 +311,13 @@ pub struct Staged {
 
 /// The hidden subdirectory of `dir` where this process stages its files.
 pub fn staging_dir(dir: &Path) -> PathBuf {
-    dir.join(format!(".edgekf-staging-{}", std::process::id()))
+    staging_dir_of(dir, std::process::id())
+}
+
+/// The hidden subdirectory of `dir` where process `pid` stages its files (a supervisor removes
+/// a killed child's).
+pub fn staging_dir_of(dir: &Path, pid: u32) -> PathBuf {
+    dir.join(format!(".edgekf-staging-{pid}"))
 }
 
 impl Staged {
@@ -334,9 +340,12 @@ impl Staged {
 
     /// The temporary path for `name` (for writers that need a path, such as the plots; the
     /// extension is kept: image encoders pick the format from it).
+    /// Staging a name again replaces the first (one file, one rename).
     pub fn path(&mut self, name: &str) -> PathBuf {
         let tmp = self.stage.join(name);
-        self.files.push((tmp.clone(), self.dir.join(name)));
+        if !self.files.iter().any(|(t, _)| *t == tmp) {
+            self.files.push((tmp.clone(), self.dir.join(name)));
+        }
         tmp
     }
 

@@ -51,13 +51,18 @@ pub enum Status {
 pub enum Control {
     /// Start stepping.
     Start,
+    /// An agent's process ended (the world sees every agent's liveliness directly; the agents
+    /// are not linked to each other on the world's network, so they hear it from the world).
+    Departed {
+        /// The agent.
+        agent: usize,
+    },
     /// The run is over (or failed: the reason).
     Stop {
         /// Why, when it failed.
         error: Option<String>,
     },
 }
-
 
 /// The messages of one channel from every neighbour, and the link statistics.
 struct Mailbox<T> {
@@ -235,7 +240,11 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
 
 impl Node {
     fn put(&self, session_world: bool, key: &str, bytes: Vec<u8>) -> Result<(), SwarmError> {
-        let s = if session_world { &self.world } else { &self.mesh };
+        let s = if session_world {
+            &self.world
+        } else {
+            &self.mesh
+        };
         let cc = if session_world {
             CongestionControl::Block
         } else {
@@ -272,6 +281,9 @@ impl Node {
             }
             Chan::Control => match wire::decode::<Control>(&self.id, &ev.key, &ev.bytes)?.0 {
                 Control::Start => self.started = true,
+                Control::Departed { agent } => {
+                    self.departed.insert(agent);
+                }
                 Control::Stop { error } => self.stopped = Some(error),
             },
             Chan::Sensing => {
@@ -324,14 +336,20 @@ impl Node {
         let mut next_hello = Instant::now();
         while !self.started {
             if let Some(e) = &self.stopped {
-                let why = e.clone().unwrap_or_else(|| "it stopped before the start".into());
+                let why = e
+                    .clone()
+                    .unwrap_or_else(|| "it stopped before the start".into());
                 return Err(SwarmError::Stopped(why));
             }
             if Instant::now() >= deadline {
                 return Err(self.meet_timeout());
             }
             if Instant::now() >= next_hello {
-                self.put(false, &self.keys.hello(self.me), wire::encode(&self.id, &self.me))?;
+                self.put(
+                    false,
+                    &self.keys.hello(self.me),
+                    wire::encode(&self.id, &self.me),
+                )?;
                 if self.world_alive && self.hears_everyone() {
                     let status = self.keys.status(self.me);
                     self.put(true, &status, wire::encode(&self.id, &Status::Ready))?;
@@ -354,7 +372,10 @@ impl Node {
         let o = &self.o;
         if !self.world_alive {
             return SwarmError::timeout(
-                format!("agent {}: no world answered at {}", self.me, o.endpoints.world),
+                format!(
+                    "agent {}: no world answered at {}",
+                    self.me, o.endpoints.world
+                ),
                 o.timeout,
                 "start `edgekf world` there, or give its endpoint with --world",
             );
@@ -367,7 +388,10 @@ impl Node {
             .collect();
         if !missing.is_empty() {
             return SwarmError::timeout(
-                format!("agent {}: neighbours {missing:?} were not heard on the mesh", self.me),
+                format!(
+                    "agent {}: neighbours {missing:?} were not heard on the mesh",
+                    self.me
+                ),
                 o.timeout,
                 "are their processes running, and is UDP open between the mesh endpoints?",
             );
@@ -385,34 +409,51 @@ impl Node {
             let Some(sensing) = self.await_sensing(k)? else {
                 return self.stop_result();
             };
+            let expected = self.expected(&sensing);
             if k > 1 {
-                let expected = self.expected(&sensing);
                 self.await_mail(k - 1, &expected, true)?;
-                self.inputs.close(k - 1, &expected);
             }
             let ex = {
                 let inputs = &self.inputs;
                 self.agent
                     .begin(&sensing, |j| inputs.get(j, k.saturating_sub(1)))?
             };
+            if k > 1 {
+                // Taken: what comes now of step k − 1 is late.
+                self.inputs.close(k - 1, &expected);
+            }
+            let ex_sent = ex.is_some();
             if let Some(x) = ex {
-                self.put(false, &self.keys.exchange(self.me), wire::encode(&self.id, &x))?;
+                self.put(
+                    false,
+                    &self.keys.exchange(self.me),
+                    wire::encode(&self.id, &x),
+                )?;
                 self.sent_exchanges += 1;
-                let expected = self.expected(&sensing);
                 self.await_mail(k, &expected, false)?;
-                self.exchanges.close(k, &expected);
             }
             let out = {
                 let exchanges = &self.exchanges;
                 self.agent.finish(|j| exchanges.get(j, k))
             };
+            if ex_sent {
+                self.exchanges.close(k, &expected);
+            }
             let mut input = out.clone();
             for l in &mut input.lanes {
                 l.report = None;
             }
-            self.put(false, &self.keys.input(self.me), wire::encode(&self.id, &input))?;
+            self.put(
+                false,
+                &self.keys.input(self.me),
+                wire::encode(&self.id, &input),
+            )?;
             self.sent_inputs += 1;
-            self.put(true, &self.keys.output(self.me), wire::encode(&self.id, &out))?;
+            self.put(
+                true,
+                &self.keys.output(self.me),
+                wire::encode(&self.id, &out),
+            )?;
             if self.stopped.is_some() {
                 return self.stop_result();
             }

@@ -324,3 +324,33 @@ fn per_run_cov_trace_is_reduced_over_all_runs() {
     let mean = row.iter().sum::<f64>() / 6.0;
     assert_eq!(res.series("ar5", "cov_trace").unwrap().mean[last], mean);
 }
+
+/// A loop past its stability bound (allowed) whose error grows without reaching infinity within
+/// the run is diverged, not completed: it stops where `est_error` passes 10⁶ length scales, and
+/// the cause names the key (`sim.dt`).
+#[test]
+fn a_finite_but_exploding_error_is_a_divergence() {
+    let mut s = spec(0.001, 0.1, 120, 2, 1, names(&["none", "rkf"]));
+    s.sim.dt = 0.1;
+    s.sim.allow_divergence = true;
+    let sc = build(&s);
+    // L is the hexagon's diameter here (2 m): the noise and prior are smaller.
+    assert!(
+        (sc.length_scale() - 2.0).abs() < 1e-12,
+        "{}",
+        sc.length_scale()
+    );
+    let res = run(&sc);
+    for e in &res.estimators {
+        let Outcome::Diverged { step, cause, .. } = &e.outcome else {
+            panic!("{}: {:?}", e.label, e.outcome);
+        };
+        // |1 − Δt·λ| ≈ 4.2 per step: 10⁶ · 2 m is passed within some 10–40 steps, long
+        // before f64 overflows (≈ 490 steps).
+        assert!((5..=60).contains(step), "{}: step {step}", e.label);
+        assert!(
+            cause.contains("divergence bound") && cause.contains("sim.dt"),
+            "{cause}"
+        );
+    }
+}

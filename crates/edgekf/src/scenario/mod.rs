@@ -1108,6 +1108,31 @@ impl Scenario {
         out
     }
 
+    /// The scenario's length scale L (m) of the divergence bound ([`crate::sim`]'s divergence
+    /// policy): L² is the largest of the formation's squared diameter, the measurement noise's
+    /// trace, twice the prior position variance's trace, and the process noise's trace times
+    /// the number of steps.
+    pub fn length_scale(&self) -> f64 {
+        let cfg = self.framework().config();
+        let (n, d) = (self.framework().agents(), self.framework().dim());
+        let mut diam2: f64 = 0.0;
+        for i in 0..n {
+            for j in 0..i {
+                let s: f64 = (0..d)
+                    .map(|a| (cfg[i * d + a] - cfg[j * d + a]).powi(2))
+                    .sum();
+                diam2 = diam2.max(s);
+            }
+        }
+        let m = self.model();
+        let noise = m.r().iter().map(|r| r.trace()).fold(0.0, f64::max);
+        let walk = m.q().trace() * self.steps as f64;
+        [diam2, noise, 2.0 * m.p().trace(), walk]
+            .into_iter()
+            .fold(f64::MIN_POSITIVE, f64::max)
+            .sqrt()
+    }
+
     /// A hint at the likely cause of a divergence, naming keys.
     pub fn divergence_hint(&self) -> String {
         let b = self.step_bound();
@@ -1120,6 +1145,15 @@ impl Scenario {
         let qmax = self.model.q().diagonal().max();
         if qmax * self.steps as f64 > 1e100 {
             hints.push("the process noise is too large for f64 (key `noise.sigma_w`)".into());
+        }
+        let rmax = self
+            .model
+            .r()
+            .iter()
+            .map(|r| r.diagonal().max())
+            .fold(0.0, f64::max);
+        if rmax > 1e100 {
+            hints.push("the measurement noise is too large for f64 (key `noise.sigma_v`)".into());
         }
         if self.faults.any() {
             hints.push(

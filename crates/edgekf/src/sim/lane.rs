@@ -30,6 +30,8 @@ pub(crate) struct Context<'a> {
     pub(crate) faults_active: bool,
     /// The likely cause of a divergence, from the scenario.
     pub(crate) hint: String,
+    /// The scenario's length scale, for the divergence bound.
+    pub(crate) scale: f64,
 }
 
 impl<'a> Context<'a> {
@@ -46,6 +48,7 @@ impl<'a> Context<'a> {
             target_leaders: sh.target_leaders(sc),
             faults_active: sc.faults().any(),
             hint: sc.divergence_hint(),
+            scale: sc.length_scale(),
         }
     }
 }
@@ -265,6 +268,10 @@ pub(crate) fn measure(
         let at3 = (at.k, at.index, cx.first_run);
         if stop.is_none() {
             stop = divergence::non_finite(metric.name(), out, metric.partial(), at3, &cx.hint);
+        }
+        if let (None, Some(power)) = (&stop, metric.length_power()) {
+            let bound = (power, cx.scale);
+            stop = divergence::out_of_bound(metric.name(), out, bound, at3, &cx.hint);
         }
     }
     stop

@@ -43,6 +43,11 @@ pub trait Metric: Send + Sync {
     fn partial(&self) -> bool {
         false
     }
+    /// The metric's unit as a power of length (`est_error`: m → 1; `cov_trace`: m² → 2), for
+    /// the divergence bound ([`super::divergence`]); `None` for a metric without one.
+    fn length_power(&self) -> Option<i32> {
+        None
+    }
 }
 
 /// `ε_k²` over the tracked edges.
@@ -57,6 +62,9 @@ impl Metric for EstErrorSq {
         } else {
             "est_error_sq"
         }
+    }
+    fn length_power(&self) -> Option<i32> {
+        Some(if self.root { 1 } else { 2 })
     }
     fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
         let runs = m.runs;
@@ -88,6 +96,9 @@ impl Metric for CovTrace {
     fn name(&self) -> &str {
         "cov_trace"
     }
+    fn length_power(&self) -> Option<i32> {
+        Some(2)
+    }
     fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
         m.estimator.cov_trace(m.step, out);
     }
@@ -99,6 +110,9 @@ struct Procrustes;
 impl Metric for Procrustes {
     fn name(&self) -> &str {
         "procrustes"
+    }
+    fn length_power(&self) -> Option<i32> {
+        Some(1)
     }
     fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
         let runs = m.runs;
@@ -124,6 +138,9 @@ struct TrackingError;
 impl Metric for TrackingError {
     fn name(&self) -> &str {
         "tracking_error"
+    }
+    fn length_power(&self) -> Option<i32> {
+        Some(2)
     }
     fn measure(&self, m: &Measure<'_>, out: &mut [f64]) {
         let Some(t) = m.step.target else {
