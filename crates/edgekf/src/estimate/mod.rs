@@ -43,6 +43,7 @@
 //! [`Registry::builtin`]. A caller can also register a kind of its own with
 //! [`Registry::with`] (see `tests/registry.rs`).
 
+pub mod adaptive;
 pub mod ar;
 pub mod batch;
 pub mod batch_aos;
@@ -57,6 +58,7 @@ pub mod oracle;
 pub mod pcrb;
 pub mod ral;
 pub mod rkf;
+pub mod rkf_adaptive;
 pub mod rkf_ca;
 pub mod rkf_commless;
 
@@ -70,8 +72,8 @@ use serde::Serialize;
 pub use crate::step::{Faults, Step, Target};
 
 pub use ar::ArModel;
-pub use model::{Model, Scope};
 pub(crate) use model::ModelParts;
+pub use model::{Model, Scope};
 
 /// An estimator's options as written in a scenario file (the entry without `kind`, `label` and
 /// `samples`).
