@@ -88,7 +88,11 @@ impl Endpoints {
     /// [`SwarmError::Zenoh`] when it cannot listen there.
     pub fn open_world(&self) -> Result<Session, SwarmError> {
         let mut c = self.base()?;
-        insert(&mut c, "listen/endpoints", &json_list(&[self.world.clone()]))?;
+        insert(
+            &mut c,
+            "listen/endpoints",
+            &json_list(&[self.world.clone()]),
+        )?;
         insert(&mut c, "connect/endpoints", "[]")?;
         open(c, &format!("listen on {}", self.world))
     }
@@ -101,7 +105,11 @@ impl Endpoints {
     pub fn open_agent_world(&self) -> Result<Session, SwarmError> {
         let mut c = self.base()?;
         insert(&mut c, "listen/endpoints", "[]")?;
-        insert(&mut c, "connect/endpoints", &json_list(&[self.world.clone()]))?;
+        insert(
+            &mut c,
+            "connect/endpoints",
+            &json_list(&[self.world.clone()]),
+        )?;
         open(c, &format!("connect to the world at {}", self.world))
     }
 
