@@ -169,6 +169,12 @@ fn readme_counts_are_the_registry_s() {
         "— {} of them (EUSIPCO {e}, thesis {t}, Guo et al. {g}, Li & Rajan {l}), and {own} of this README's own",
         e + t + g + l
     );
-    assert!(intro.contains(&expected), "the README's intro should say: {expected}");
-    assert!(!intro.contains("not yet in the registry"), "stale sentence in the README's intro");
+    assert!(
+        intro.contains(&expected),
+        "the README's intro should say: {expected}"
+    );
+    assert!(
+        !intro.contains("not yet in the registry"),
+        "stale sentence in the README's intro"
+    );
 }

@@ -333,7 +333,9 @@ feedback = "{feedback}"
         let res = common::run(&sc);
         eprintln!("== λ = {lam}, feedback = {feedback} (window 10–60 s, 20 runs)");
         let (t0, t1) = (10.0, 60.0);
-        for label in ["none", "rkf-1", "ga-1", "rkf-0.05", "ga-0.05", "rkf-ad", "ga-ad"] {
+        for label in [
+            "none", "rkf-1", "ga-1", "rkf-0.05", "ga-0.05", "rkf-ad", "ga-ad",
+        ] {
             let e2 = window(&res, label, "est_error_sq", t0, t1);
             let ct = window(&res, label, "cov_trace", t0, t1);
             let (c, cse) = ratio_se(&e2, &ct);
@@ -349,7 +351,11 @@ feedback = "{feedback}"
                 "{label:9} ε² {e:.4e} ± {ese:.1e}  ε²/cov {c:.3} ± {cse:.3}  δ {d:.4e} ± {dse:.1e}{sw}"
             );
         }
-        for (ga, rkf) in [("ga-1", "rkf-1"), ("ga-0.05", "rkf-0.05"), ("ga-ad", "rkf-ad")] {
+        for (ga, rkf) in [
+            ("ga-1", "rkf-1"),
+            ("ga-0.05", "rkf-0.05"),
+            ("ga-ad", "rkf-ad"),
+        ] {
             let (a, b) = (
                 window(&res, ga, "est_error_sq", t0, t1),
                 window(&res, rkf, "est_error_sq", t0, t1),
