@@ -236,7 +236,7 @@ impl Assumed {
                         "option `{key}` must be positive and finite, got {v}"
                     ));
                 }
-                if !(world > 0.0) {
+                if world.is_nan() || world <= 0.0 {
                     return Err(format!(
                         "option `{key}` scales the world's {what}, and it has none: give the world some"
                     ));
