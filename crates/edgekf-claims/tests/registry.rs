@@ -144,3 +144,37 @@ fn settled_claims_at_reduced_size() {
 fn every_claim_at_full_size() {
     check(registry::claims(), Size::Full);
 }
+
+/// The README's introduction counts the registry's claims per paper (issue 25: it said 79 + 6
+/// and "Li & Rajan not yet in the registry" when the registry held 30 of theirs and 8 of its own).
+#[test]
+fn readme_counts_are_the_registry_s() {
+    let claims = registry::claims();
+    let count = |p: Paper| claims.iter().filter(|c| c.paper == p).count();
+    let (e, t, g, l, own) = (
+        count(Paper::Eusipco),
+        count(Paper::Thesis),
+        count(Paper::Guo),
+        count(Paper::LiRajan),
+        count(Paper::Project),
+    );
+    let intro: String = README
+        .split("## Two commands")
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    let expected = format!(
+        "— {} of them (EUSIPCO {e}, thesis {t}, Guo et al. {g}, Li & Rajan {l}), and {own} of this README's own",
+        e + t + g + l
+    );
+    assert!(
+        intro.contains(&expected),
+        "the README's intro should say: {expected}"
+    );
+    assert!(
+        !intro.contains("not yet in the registry"),
+        "stale sentence in the README's intro"
+    );
+}

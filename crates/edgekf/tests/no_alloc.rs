@@ -44,6 +44,14 @@ fn allocations_do_not_grow_with_steps() {
         .unwrap();
     let mut estimators = names(&["none", "mle", "rkf", "jrkf", "crkf", "oracle"]);
     estimators.push(table("mmse", "mmse", None, Some(1e-3)));
+    // The adaptive filters (issue 25): per-run covariances and sensitivities, sized once.
+    for (kind, adaptive) in [("rkf", "both"), ("jrkf", "process")] {
+        estimators.push(
+            edgekf::scenario::EstimatorEntry::kind(kind)
+                .with("label", format!("{kind}-adaptive"))
+                .with("adaptive", adaptive),
+        );
+    }
     // Both report exactly steps {1, every, steps}: 3 reports.
     let count = |steps: usize| {
         let sc = hexagon(0.001, 0.1, steps, 3, steps / 2, estimators.clone());
@@ -74,7 +82,9 @@ fn ca_filters_allocate_nothing_per_step() {
         let text = format!(
             r#"
 name = "ca-alloc"
-estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }}]
+estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }},
+  {{ kind = "rkf-ca", label = "rkf-ca-adaptive", adaptive = "both" }},
+  {{ kind = "garkf", label = "garkf-adaptive", adaptive = true }}]
 [framework]
 preset = "hexagon"
 [sim]

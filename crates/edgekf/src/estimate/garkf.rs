@@ -74,6 +74,7 @@ use std::sync::Arc;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
+use super::adaptive::Adapt;
 use super::ca::packed_index;
 use super::pcrb::Observation;
 use super::ral::{
@@ -81,8 +82,8 @@ use super::ral::{
     RalVariant, DEFAULT_RANK_TOL,
 };
 use super::rkf_ca::{
-    agent_quantity_ca, ca_cost, check_ca, default_sigma_w, pcrb_runs, provides_ca, Bound, CaEdges,
-    PcrbTrack,
+    adaptive_ca_cost, agent_quantity_ca_all, ca_cost, default_sigma_w, pcrb_runs, provides_ca_all,
+    Bound, CaEdges, CaNoise, PcrbTrack,
 };
 use super::{
     cov_trace_of_agents, options_of, parse_options, quantity_of_agents, Configured, Cost,
@@ -121,6 +122,15 @@ struct GarkfOptions {
     /// σ_w of (7) (default 1).
     #[serde(default = "default_sigma_w")]
     sigma_w: f64,
+    /// σ_v the filter assumes: `R_ij` scaled by `(sigma_v / σ_v,world)²` (default the world's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_v: Option<f64>,
+    /// Learn the noise scales online ([`super::adaptive`]; from the direct measurements only).
+    #[serde(default, skip_serializing_if = "Adapt::is_off")]
+    adaptive: Adapt,
+    /// The forgetting factor of the adaptation (default `1 − Δt / 20 s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    forgetting: Option<f64>,
     /// ε of (16) (default 0.08).
     #[serde(default = "default_epsilon")]
     epsilon: f64,
@@ -150,7 +160,7 @@ fn default_rank_tol() -> f64 {
 pub fn nominal_epsilon_bound(m: &Model) -> Result<f64, String> {
     let s = consensus_stability(
         m.agents(),
-        &m.edges(),
+        m.edges(),
         &vec![true; m.agents()],
         InfeasibleRal::Masked,
         0.0,
@@ -167,8 +177,9 @@ impl EstimatorKind for GarkfKind {
         "geometry-aware relative Kalman filter (Li & Rajan Alg. 1, corrected)"
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
-        let opt: GarkfOptions = parse_options(o)?;
-        check_ca(m, opt.sigma_w)?;
+        let mut opt: GarkfOptions = parse_options(o)?;
+        let noise = CaNoise::new(m, opt.sigma_w, opt.sigma_v, opt.adaptive, opt.forgetting)?;
+        (opt.sigma_v, opt.adaptive, opt.forgetting) = noise.resolved();
         if !(opt.epsilon.is_finite() && opt.epsilon > 0.0) {
             return Err(format!(
                 "option `epsilon` must be positive and finite, got {}",
@@ -206,7 +217,7 @@ impl EstimatorKind for GarkfKind {
                 EpsilonPolicy::Scale => EPSILON_SCALE * bound,
             }
         };
-        Ok(Arc::new(Config { opt, eps }))
+        Ok(Arc::new(Config { opt, eps, noise }))
     }
 }
 
@@ -215,6 +226,8 @@ struct Config {
     opt: GarkfOptions,
     /// The ε used.
     eps: f64,
+    /// The noise the CA filters assume and learn.
+    noise: CaNoise,
 }
 
 impl Config {
@@ -251,52 +264,55 @@ impl Configured for Config {
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
         let st = self.settings();
+        let n = &self.noise;
+        // The PCRB (23) is the filter's own recursion at its assumed σ_w: not drawn for a filter
+        // that learns σ_w.
+        let fixed = n.adapt.is_none();
         match m.dim() {
             1 => Box::new(Garkf::<1>::new(
                 m,
                 st,
+                n,
                 samples,
                 runs,
-                pcrb_runs::<1, 3>(m, st.sigma_w, samples, runs, Bound::Ga),
+                pcrb_runs::<1, 3>(m, st.sigma_w, samples, runs, Bound::Ga).filter(|_| fixed),
             )),
             2 => Box::new(Garkf::<2>::new(
                 m,
                 st,
+                n,
                 samples,
                 runs,
-                pcrb_runs::<2, 6>(m, st.sigma_w, samples, runs, Bound::Ga),
+                pcrb_runs::<2, 6>(m, st.sigma_w, samples, runs, Bound::Ga).filter(|_| fixed),
             )),
             _ => Box::new(Garkf::<3>::new(
                 m,
                 st,
+                n,
                 samples,
                 runs,
-                pcrb_runs::<3, 9>(m, st.sigma_w, samples, runs, Bound::Ga),
+                pcrb_runs::<3, 9>(m, st.sigma_w, samples, runs, Bound::Ga).filter(|_| fixed),
             )),
         }
     }
 
     fn metrics(&self) -> &'static [&'static str] {
-        &[
-            "edge_cov_trace",
-            "psi",
-            "theta_error",
-            "theta_ral_error",
-            "theta_trace",
-            "theta_trace_min",
-            "theta_trace_max",
-            "theta_ral_trace",
-            "theta_ral_trace_min",
-            "theta_ral_trace_max",
-            "pcrb_trace",
-        ]
+        match &self.noise.adapt {
+            None => &METRICS,
+            Some(a) if a.measurement => &METRICS_WV,
+            Some(_) => &METRICS_W,
+        }
     }
 
     fn cost(&self, m: &Model) -> Cost {
-        let mut c = ca_cost(
-            m,
-            matches!(self.opt.ral, RalVariant::General | RalVariant::Translation),
-        );
+        let mut c = if self.noise.adapt.is_some() {
+            adaptive_ca_cost(m)
+        } else {
+            ca_cost(
+                m,
+                matches!(self.opt.ral, RalVariant::General | RalVariant::Translation),
+            )
+        };
         let d2 = (m.dim() * m.dim()) as f64;
         c.bytes_per_run += m.agents() as f64 * 8.0 * (6.0 * d2 + 4.0);
         c.flops_per_run_step += m.num_edges() as f64 * 12.0 * d2 + m.agents() as f64 * 40.0 * d2;
@@ -307,6 +323,48 @@ impl Configured for Config {
         false
     }
 }
+
+/// GA-RKF's metrics (with a fixed σ_w: the PCRB; adaptive: the learnt scales instead).
+const METRICS: [&str; 11] = [
+    "edge_cov_trace",
+    "psi",
+    "theta_error",
+    "theta_ral_error",
+    "theta_trace",
+    "theta_trace_min",
+    "theta_trace_max",
+    "theta_ral_trace",
+    "theta_ral_trace_min",
+    "theta_ral_trace_max",
+    "pcrb_trace",
+];
+const METRICS_W: [&str; 11] = [
+    "edge_cov_trace",
+    "psi",
+    "theta_error",
+    "theta_ral_error",
+    "theta_trace",
+    "theta_trace_min",
+    "theta_trace_max",
+    "theta_ral_trace",
+    "theta_ral_trace_min",
+    "theta_ral_trace_max",
+    "sigma_w_hat",
+];
+const METRICS_WV: [&str; 12] = [
+    "edge_cov_trace",
+    "psi",
+    "theta_error",
+    "theta_ral_error",
+    "theta_trace",
+    "theta_trace_min",
+    "theta_trace_max",
+    "theta_ral_trace",
+    "theta_ral_trace_min",
+    "theta_ral_trace_max",
+    "sigma_w_hat",
+    "sigma_v_hat",
+];
 
 type Mat<const D: usize> = SMatrix<f64, D, D>;
 type Vect<const D: usize> = SMatrix<f64, D, 1>;
@@ -358,6 +416,7 @@ impl<const D: usize> Garkf<D> {
     fn new(
         m: &Model,
         st: Settings,
+        noise: &CaNoise,
         samples: usize,
         runs: usize,
         pcrb: Option<Box<dyn PcrbTrack<D>>>,
@@ -373,9 +432,9 @@ impl<const D: usize> Garkf<D> {
         Self {
             // R̃ is diagonal in W's eigenbasis for the general RAL ((15): a multiple of W, plus
             // ψ I) and the translation RAL (ψ I); the other variants' R^ral are not.
-            ca: CaEdges::new(
+            ca: CaEdges::with_noise(
                 m,
-                st.sigma_w,
+                noise,
                 samples,
                 runs,
                 matches!(st.variant, RalVariant::General | RalVariant::Translation),
@@ -718,6 +777,7 @@ impl<const D: usize> Exchange for Garkf<D> {
         for e in 0..self.ca.edges.len() {
             self.edge_step(e, s);
         }
+        self.ca.end_step();
     }
 }
 
@@ -742,7 +802,7 @@ impl<const D: usize> Estimator for Garkf<D> {
     fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
         let ours = AGENT_QUANTITIES.contains(&name);
         let needs_target = name.starts_with("theta_") && name.ends_with("_error");
-        if !(ours || provides_ca(self.metric_edge, self.pcrb.as_deref(), name))
+        if !(ours || provides_ca_all(&self.ca, self.metric_edge, self.pcrb.as_deref(), name))
             || (needs_target && s.target.is_none())
         {
             return false;
@@ -755,12 +815,13 @@ impl<const D: usize> Estimator for Garkf<D> {
         if AGENT_QUANTITIES.contains(&name) {
             return self.agent_value(name, i, r, s);
         }
-        agent_quantity_ca(
+        agent_quantity_ca_all(
             &self.ca,
             self.metric_edge,
             self.pcrb.as_deref(),
             name,
             (i, r),
+            s,
         )
     }
 

@@ -38,6 +38,9 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
+use super::adaptive::{adaptive_metrics, Adaptation, Assumed};
+use super::rkf::NoiseOptions;
+use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, options_of, parse_options, Breakdown, Configured, Cost,
     Estimator, EstimatorKind, Model, Options, Step,
@@ -50,10 +53,6 @@ pub struct JrkfKind;
 /// `kind = "jrkf-ar"`.
 #[derive(Debug, Clone, Copy)]
 pub struct JrkfArKind;
-
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct NoOptions {}
 
 /// Options of `jrkf-ar`.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -73,8 +72,13 @@ impl EstimatorKind for JrkfKind {
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
-        parse_options::<NoOptions>(o)?;
-        Ok(Arc::new(Config { ar: None }))
+        let opt: NoiseOptions = parse_options(o)?;
+        let (assumed, adapt) = opt.check(m)?;
+        Ok(Arc::new(Config {
+            ar: None,
+            assumed: Some(assumed),
+            adapt,
+        }))
     }
 }
 
@@ -98,27 +102,61 @@ impl EstimatorKind for JrkfArKind {
                     .into(),
             );
         }
-        Ok(Arc::new(Config { ar: Some(p) }))
+        Ok(Arc::new(Config {
+            ar: Some(p),
+            assumed: None,
+            adapt: None,
+        }))
     }
 }
 
-/// A configured joint filter: `ar` is `jrkf-ar`'s failure probability.
+/// A configured joint filter: `ar` is `jrkf-ar`'s failure probability; `jrkf` has the noise it
+/// assumes and what it learns.
 #[derive(Debug, Clone, Copy)]
 struct Config {
     ar: Option<f64>,
+    assumed: Option<Assumed>,
+    adapt: Option<Adaptation>,
 }
 
 impl Configured for Config {
     fn options(&self) -> Options {
-        match self.ar {
-            Some(p) => options_of(&ArOptions { p_fail: Some(p) }),
-            None => Options::new(),
+        match (self.ar, &self.assumed) {
+            (Some(p), _) => options_of(&ArOptions { p_fail: Some(p) }),
+            (None, Some(a)) => NoiseOptions::resolved(a, self.adapt),
+            _ => Options::new(),
         }
     }
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        Box::new(Jrkf::new(m, samples, runs, self.ar, self.shared_gain(m)))
+        match (self.assumed, self.adapt) {
+            (Some(assumed), Some(adapt)) => Box::new(AdaptiveRw::new(
+                m,
+                samples,
+                runs,
+                Form::Joint,
+                assumed,
+                adapt,
+            )),
+            (assumed, _) => {
+                let scales = assumed.map_or((None, None), |a| (a.q_scale(m), a.r_scale(m)));
+                Box::new(Jrkf::with_scales(
+                    m,
+                    samples,
+                    runs,
+                    self.ar,
+                    self.shared_gain(m),
+                    scales,
+                ))
+            }
+        }
+    }
+    fn metrics(&self) -> &'static [&'static str] {
+        adaptive_metrics(self.adapt.as_ref())
     }
     fn cost(&self, m: &Model) -> Cost {
+        if self.adapt.is_some() {
+            return adaptive_cost(m, Form::Joint);
+        }
         let d = m.dim() as f64;
         let cubes: f64 = m
             .agent_edges()
@@ -148,7 +186,9 @@ impl Configured for Config {
         }
     }
     fn shared_gain(&self, m: &Model) -> bool {
-        !m.measurement_faults() && self.ar.is_none_or(|p| p <= 0.0 || p >= 1.0)
+        self.adapt.is_none()
+            && !m.measurement_faults()
+            && self.ar.is_none_or(|p| p <= 0.0 || p >= 1.0)
     }
     fn link_failure(&self) -> Option<f64> {
         self.ar
@@ -238,7 +278,11 @@ impl Block {
 }
 
 /// The blocks of every agent, at `Σ_{0|0}`, and the largest block size.
-fn agent_blocks(m: &Model, samples: usize) -> (Vec<Block>, usize) {
+fn agent_blocks(
+    m: &Model,
+    samples: usize,
+    scales: (Option<f64>, Option<f64>),
+) -> (Vec<Block>, usize) {
     let d = m.dim();
     let w_edges = m.mean_cov(samples);
     let mut blocks = Vec::with_capacity(m.agents());
@@ -251,13 +295,18 @@ fn agent_blocks(m: &Model, samples: usize) -> (Vec<Block>, usize) {
         let mut sigma0 = DMatrix::zeros(n, n);
         for (a, e) in range.clone().enumerate() {
             for (b, f) in range.clone().enumerate() {
+                let qef = m.edge_q(e, f);
                 q.view_mut((a * d, b * d), (d, d))
-                    .copy_from(&m.edge_q(e, f));
+                    .copy_from(&scales.0.map_or_else(|| qef.clone(), |s| &qef * s));
                 sigma0
                     .view_mut((a * d, b * d), (d, d))
                     .copy_from(&m.edge_p0(e, f));
             }
-            w.view_mut((a * d, a * d), (d, d)).copy_from(&w_edges[e]);
+            w.view_mut((a * d, a * d), (d, d)).copy_from(
+                &scales
+                    .1
+                    .map_or_else(|| w_edges[e].clone(), |s| &w_edges[e] * s),
+            );
         }
         blocks.push(Block {
             row: range.start * d,
@@ -311,8 +360,21 @@ impl Jrkf {
     /// For `runs` runs; `p_fail` makes it `jrkf-ar` (which needs `m.ar`); `shared` selects the
     /// shared-gain path (valid only when the gain does not depend on the data).
     pub fn new(m: &Model, samples: usize, runs: usize, p_fail: Option<f64>, shared: bool) -> Self {
+        Self::with_scales(m, samples, runs, p_fail, shared, (None, None))
+    }
+
+    /// [`Jrkf::new`] with the world's `Q` and `R` scaled by `scales` (the filter's own `sigma_w`,
+    /// `sigma_v`; `None`: the world's).
+    pub fn with_scales(
+        m: &Model,
+        samples: usize,
+        runs: usize,
+        p_fail: Option<f64>,
+        shared: bool,
+        scales: (Option<f64>, Option<f64>),
+    ) -> Self {
         let d = m.dim();
-        let (proto, max_n) = agent_blocks(m, samples);
+        let (proto, max_n) = agent_blocks(m, samples, scales);
         // Shared: one recursion per group of agents with identical blocks (same Q_i, R_i, Σ_0;
         // with white process noise the agents of equal degree form a group).
         let agent_group = if shared {

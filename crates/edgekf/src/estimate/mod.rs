@@ -43,6 +43,7 @@
 //! [`Registry::builtin`]. A caller can also register a kind of its own with
 //! [`Registry::with`] (see `tests/registry.rs`).
 
+pub mod adaptive;
 pub mod ar;
 pub mod batch;
 pub mod batch_aos;
@@ -57,6 +58,7 @@ pub mod oracle;
 pub mod pcrb;
 pub mod ral;
 pub mod rkf;
+pub mod rkf_adaptive;
 pub mod rkf_ca;
 pub mod rkf_commless;
 

@@ -45,7 +45,9 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use super::adaptive::{adaptive_metrics, Adapt, AdaptOptions, Adaptation, Assumed};
 use super::batch::{EdgeBank, EdgeCov, Mat};
+use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static,
     Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
@@ -78,10 +80,61 @@ pub struct RkfZeroKind;
 #[derive(Debug, Clone, Copy)]
 pub struct RkfArKind;
 
-/// `rkf` and `rkf-zero` take no options.
+/// `rkf-zero` takes no options.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct NoOptions {}
+
+/// Options of `rkf` (and of `jrkf`): the noise the filter assumes, and what it learns online.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct NoiseOptions {
+    /// σ_w the filter assumes: `Q` scaled by `(sigma_w / σ_w,world)²` (default: the world's Q).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) sigma_w: Option<f64>,
+    /// σ_v the filter assumes: `R_ij` scaled by `(sigma_v / σ_v,world)²` (default: the world's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) sigma_v: Option<f64>,
+    /// Learn the noise scales online ([`super::adaptive`]): `true`/`"process"`, `"both"`.
+    #[serde(default, skip_serializing_if = "Adapt::is_off")]
+    pub(crate) adaptive: Adapt,
+    /// The forgetting factor λ of the adaptation (default `1 − Δt / 20 s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) forgetting: Option<f64>,
+}
+
+impl NoiseOptions {
+    /// The checked assumed noise and adaptation.
+    ///
+    /// # Errors
+    /// A message naming the option.
+    pub(crate) fn check(&self, m: &Model) -> Result<(Assumed, Option<Adaptation>), String> {
+        let assumed = Assumed::new(m, self.sigma_w, self.sigma_v)?;
+        let adapt = AdaptOptions {
+            adaptive: self.adaptive,
+            forgetting: self.forgetting,
+        }
+        .check(m.dt())?;
+        if adapt.is_some() && super::adaptive::world_sigma_w(m) <= 0.0 {
+            return Err(
+                "option `adaptive` learns a scale of the process noise, and the model has none (`noise.sigma_w` = 0)"
+                    .into(),
+            );
+        }
+        Ok((assumed, adapt))
+    }
+
+    /// The resolved options.
+    pub(crate) fn resolved(assumed: &Assumed, adapt: Option<Adaptation>) -> Options {
+        let a = AdaptOptions::resolved(adapt);
+        options_of(&NoiseOptions {
+            sigma_w: assumed.sigma_w_option,
+            sigma_v: assumed.sigma_v_option,
+            adaptive: a.adaptive,
+            forgetting: a.forgetting,
+        })
+    }
+}
 
 /// Options of `rkf-ar`.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -101,8 +154,13 @@ impl EstimatorKind for RkfKind {
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
-        parse_options::<NoOptions>(o)?;
-        Ok(Arc::new(Config(Input::Known)))
+        let opt: NoiseOptions = parse_options(o)?;
+        let (assumed, adapt) = opt.check(m)?;
+        Ok(Arc::new(Config {
+            input: Input::Known,
+            assumed: Some(assumed),
+            adapt,
+        }))
     }
 }
 
@@ -116,7 +174,7 @@ impl EstimatorKind for RkfZeroKind {
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         check_kalman(m, self.name())?;
         parse_options::<NoOptions>(o)?;
-        Ok(Arc::new(Config(Input::Zero)))
+        Ok(Arc::new(Config::fixed(Input::Zero)))
     }
 }
 
@@ -140,31 +198,72 @@ impl EstimatorKind for RkfArKind {
                     .into(),
             );
         }
-        Ok(Arc::new(Config(Input::Ar { p_fail: p })))
+        Ok(Arc::new(Config::fixed(Input::Ar { p_fail: p })))
     }
 }
 
-/// A configured RKF.
+/// `a` as a static matrix, times `s` when given (`None`: exactly `a`).
+fn scaled<const D: usize>(a: &nalgebra::DMatrix<f64>, s: Option<f64>) -> Mat<D> {
+    let a = to_static::<D>(a);
+    s.map_or(a, |s| a * s)
+}
+
+/// A configured RKF: its input model, for `rkf` the noise it assumes and what it learns.
 #[derive(Debug, Clone, Copy)]
-struct Config(Input);
+struct Config {
+    input: Input,
+    assumed: Option<Assumed>,
+    adapt: Option<Adaptation>,
+}
+
+impl Config {
+    fn fixed(input: Input) -> Self {
+        Self {
+            input,
+            assumed: None,
+            adapt: None,
+        }
+    }
+}
 
 impl Configured for Config {
     fn options(&self) -> Options {
-        match self.0 {
-            Input::Ar { p_fail } => options_of(&ArOptions {
+        match (self.input, &self.assumed) {
+            (Input::Ar { p_fail }, _) => options_of(&ArOptions {
                 p_fail: Some(p_fail),
             }),
+            (_, Some(a)) => NoiseOptions::resolved(a, self.adapt),
             _ => Options::new(),
         }
     }
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
-        by_dim!(m.dim(), D => Box::new(Rkf::<D>::new(m, samples, runs, self.0)))
+        match (self.assumed, self.adapt) {
+            (Some(assumed), Some(adapt)) => Box::new(AdaptiveRw::new(
+                m,
+                samples,
+                runs,
+                Form::Edge,
+                assumed,
+                adapt,
+            )),
+            (assumed, _) => {
+                let scales = assumed.map_or((None, None), |a| (a.q_scale(m), a.r_scale(m)));
+                by_dim!(m.dim(), D => Box::new(Rkf::<D>::with_scales(m, samples, runs, self.input, scales)))
+            }
+        }
+    }
+
+    fn metrics(&self) -> &'static [&'static str] {
+        adaptive_metrics(self.adapt.as_ref())
     }
 
     fn cost(&self, m: &Model) -> Cost {
         let me = m.num_edges() as f64;
         let d = m.dim() as f64;
+        if self.adapt.is_some() {
+            return adaptive_cost(m, Form::Edge);
+        }
         let per_run = !self.shared_gain(m);
         Cost {
             bytes_per_run: me * d * 8.0 * if per_run { 4.0 } else { 1.0 },
@@ -175,15 +274,16 @@ impl Configured for Config {
     }
 
     fn link_failure(&self) -> Option<f64> {
-        match self.0 {
+        match self.input {
             Input::Ar { p_fail } => Some(p_fail),
             _ => None,
         }
     }
 
     fn shared_gain(&self, m: &Model) -> bool {
-        !m.measurement_faults()
-            && match self.0 {
+        self.adapt.is_none()
+            && !m.measurement_faults()
+            && match self.input {
                 Input::Ar { p_fail } => p_fail <= 0.0 || p_fail >= 1.0,
                 _ => true,
             }
@@ -243,9 +343,28 @@ impl<const D: usize> Rkf<D> {
     /// # Panics
     /// For `Input::Ar` without an AR model in `m` (the kind checks it).
     pub fn new(m: &Model, samples: usize, runs: usize, input: Input) -> Self {
+        Self::with_scales(m, samples, runs, input, (None, None))
+    }
+
+    /// [`Rkf::new`] with the world's `Q` and `R` scaled by `scales` (the filter's own `sigma_w`,
+    /// `sigma_v`; `None`: the world's).
+    ///
+    /// # Panics
+    /// As [`Rkf::new`].
+    pub fn with_scales(
+        m: &Model,
+        samples: usize,
+        runs: usize,
+        input: Input,
+        scales: (Option<f64>, Option<f64>),
+    ) -> Self {
         let ne = m.num_edges();
-        let q: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_q(e, e))).collect();
-        let w: Vec<Mat<D>> = m.mean_cov(samples).iter().map(to_static::<D>).collect();
+        let q: Vec<Mat<D>> = (0..ne).map(|e| scaled(&m.edge_q(e, e), scales.0)).collect();
+        let w: Vec<Mat<D>> = m
+            .mean_cov(samples)
+            .iter()
+            .map(|w| scaled(w, scales.1))
+            .collect();
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
         let (coeffs, extra, hist) = match input {
             Input::Ar { .. } => {
@@ -265,7 +384,7 @@ impl<const D: usize> Rkf<D> {
             }
             _ => (Vec::new(), Mat::<D>::zeros(), Vec::new()),
         };
-        let shared = Config(input).shared_gain(m);
+        let shared = Config::fixed(input).shared_gain(m);
         let covs = if shared {
             let (group, reps) = groups((0..ne).map(|e| {
                 q[e].iter()
@@ -626,7 +745,7 @@ mod tests {
                 .collect();
             let zeros_e = vec![0.0; ne * 2];
             let zeros_n = vec![0.0; m.agents() * 2];
-            let faults = Faults::none(m.agents(), &m.edges(), 1);
+            let faults = Faults::none(m.agents(), m.edges(), 1);
             let step = Step {
                 k: 1,
                 dt: m.dt(),

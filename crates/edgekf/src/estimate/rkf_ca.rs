@@ -35,8 +35,10 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, SMatrix};
 use serde::{Deserialize, Serialize};
 
+use super::adaptive::{Adapt, AdaptOptions, Adaptation, Assumed, Bank, BlockModel, Obs};
 use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
 use super::pcrb::{EdgePcrb, GaPrior, Observation};
+use super::rkf_adaptive::{agent_scale, provides};
 use super::{
     cov_trace_of_agents, options_of, parse_options, quantity_of_agents, to_static, Configured,
     Cost, Estimator, EstimatorKind, Model, Options, Step,
@@ -60,6 +62,91 @@ struct RkfCaOptions {
     /// σ_w of (7) (default 1).
     #[serde(default = "default_sigma_w")]
     sigma_w: f64,
+    /// σ_v the filter assumes: `R_ij` scaled by `(sigma_v / σ_v,world)²` (default the world's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_v: Option<f64>,
+    /// Learn the noise scales online ([`super::adaptive`]).
+    #[serde(default, skip_serializing_if = "Adapt::is_off")]
+    adaptive: Adapt,
+    /// The forgetting factor of the adaptation (default `1 − Δt / 20 s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    forgetting: Option<f64>,
+}
+
+/// The noise a CA filter assumes (σ_w of (7), its measurement noise) and what it learns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CaNoise {
+    /// σ_w of (7).
+    pub(crate) sigma_w: f64,
+    /// The factor on the world's R (`None`: R as it is).
+    pub(crate) r_scale: Option<f64>,
+    /// What it learns online.
+    pub(crate) adapt: Option<Adaptation>,
+    /// σ_w and σ_v as assumed (for `sigma_w_hat`, `sigma_v_hat`).
+    pub(crate) assumed: Assumed,
+}
+
+impl CaNoise {
+    /// A filter with σ_w and the world's R, learning nothing.
+    #[cfg(test)]
+    pub(crate) fn fixed(sigma_w: f64) -> Self {
+        Self {
+            sigma_w,
+            r_scale: None,
+            adapt: None,
+            assumed: Assumed {
+                sigma_w_option: Some(sigma_w),
+                sigma_v_option: None,
+                sigma_w,
+                sigma_v: f64::NAN,
+            },
+        }
+    }
+
+    /// From a CA filter's options.
+    ///
+    /// # Errors
+    /// A message naming the option.
+    pub(crate) fn new(
+        m: &Model,
+        sigma_w: f64,
+        sigma_v: Option<f64>,
+        adaptive: Adapt,
+        forgetting: Option<f64>,
+    ) -> Result<Self, String> {
+        check_ca(m, sigma_w)?;
+        let mut assumed = Assumed::new(m, None, sigma_v)?;
+        assumed.sigma_w = sigma_w;
+        assumed.sigma_w_option = Some(sigma_w);
+        let r_scale = assumed.r_scale(m);
+        let mut adapt = AdaptOptions {
+            adaptive,
+            forgetting,
+        }
+        .check(m.dt())?;
+        if let Some(a) = &mut adapt {
+            // The largest σ_w the filter carries in f64 (`check_ca`), as a bound on ln c_w.
+            let r_min = m
+                .r()
+                .iter()
+                .map(|r| r.symmetric_eigenvalues().min() * r_scale.unwrap_or(1.0))
+                .fold(f64::INFINITY, f64::min);
+            let top = MAX_PROCESS_TO_MEASUREMENT * 4.0 * r_min / m.dt().powi(4);
+            a.max_log_w = (top / (sigma_w * sigma_w)).ln().min(a.max_log_w);
+        }
+        Ok(Self {
+            sigma_w,
+            r_scale,
+            adapt,
+            assumed,
+        })
+    }
+
+    /// The resolved options `sigma_v`, `adaptive`, `forgetting`.
+    pub(crate) fn resolved(&self) -> (Option<f64>, Adapt, Option<f64>) {
+        let a = AdaptOptions::resolved(self.adapt);
+        (self.assumed.sigma_v_option, a.adaptive, a.forgetting)
+    }
 }
 
 /// Checks σ_w and the measurement covariances a CA filter needs.
@@ -110,50 +197,63 @@ impl EstimatorKind for RkfCaKind {
     }
     fn configure(&self, o: &Options, m: &Model) -> Result<Arc<dyn Configured>, String> {
         let opt: RkfCaOptions = parse_options(o)?;
-        check_ca(m, opt.sigma_w)?;
-        Ok(Arc::new(Config {
-            sigma_w: opt.sigma_w,
-        }))
+        let noise = CaNoise::new(m, opt.sigma_w, opt.sigma_v, opt.adaptive, opt.forgetting)?;
+        Ok(Arc::new(Config { noise }))
     }
 }
 
 #[derive(Debug, Clone, Copy)]
 struct Config {
-    sigma_w: f64,
+    noise: CaNoise,
 }
 
 impl Configured for Config {
     fn options(&self) -> Options {
+        let (sigma_v, adaptive, forgetting) = self.noise.resolved();
         options_of(&RkfCaOptions {
-            sigma_w: self.sigma_w,
+            sigma_w: self.noise.sigma_w,
+            sigma_v,
+            adaptive,
+            forgetting,
         })
     }
 
     fn build(&self, m: &Model, samples: usize, runs: usize) -> Box<dyn Estimator> {
+        let n = &self.noise;
+        // The PCRB (22) is the filter's own recursion at its assumed σ_w: not drawn for a filter
+        // that learns σ_w.
+        let fixed = n.adapt.is_none();
         match m.dim() {
             1 => Box::new(RkfCa::<1>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs, true),
+                CaEdges::with_noise(m, n, samples, runs, true),
                 m.metric_edge(),
-                pcrb_runs::<1, 3>(m, self.sigma_w, samples, runs, Bound::Rkf),
+                pcrb_runs::<1, 3>(m, n.sigma_w, samples, runs, Bound::Rkf).filter(|_| fixed),
             )),
             2 => Box::new(RkfCa::<2>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs, true),
+                CaEdges::with_noise(m, n, samples, runs, true),
                 m.metric_edge(),
-                pcrb_runs::<2, 6>(m, self.sigma_w, samples, runs, Bound::Rkf),
+                pcrb_runs::<2, 6>(m, n.sigma_w, samples, runs, Bound::Rkf).filter(|_| fixed),
             )),
             _ => Box::new(RkfCa::<3>::new(
-                CaEdges::new(m, self.sigma_w, samples, runs, true),
+                CaEdges::with_noise(m, n, samples, runs, true),
                 m.metric_edge(),
-                pcrb_runs::<3, 9>(m, self.sigma_w, samples, runs, Bound::Rkf),
+                pcrb_runs::<3, 9>(m, n.sigma_w, samples, runs, Bound::Rkf).filter(|_| fixed),
             )),
         }
     }
 
     fn metrics(&self) -> &'static [&'static str] {
-        &["edge_cov_trace", "pcrb_trace"]
+        match &self.noise.adapt {
+            None => &["edge_cov_trace", "pcrb_trace"],
+            Some(a) if a.measurement => &["edge_cov_trace", "sigma_w_hat", "sigma_v_hat"],
+            Some(_) => &["edge_cov_trace", "sigma_w_hat"],
+        }
     }
 
     fn cost(&self, m: &Model) -> Cost {
+        if self.noise.adapt.is_some() {
+            return adaptive_ca_cost(m);
+        }
         ca_cost(m, true)
     }
 
@@ -193,6 +293,19 @@ pub(crate) fn ca_cost(m: &Model, axes_ok: bool) -> Cost {
             // 2.5·10⁶ edge-steps), counted at the cost model's 0.5 ns per operation.
             flops_shared_step: me * 8000.0,
         }
+    }
+}
+
+/// The cost of the adaptive CA filters: per edge and run a `3D` filter with two sensitivities in
+/// dense form (≈ 1 µs per edge-run-step on the hexagon, D = 2).
+pub(crate) fn adaptive_ca_cost(m: &Model) -> Cost {
+    let me = m.num_edges() as f64;
+    let n = 3.0 * m.dim() as f64;
+    Cost {
+        bytes_per_run: me * 3.0 * (n + n * n) * 8.0,
+        bytes_shared: 0.0,
+        flops_per_run_step: me * 2000.0,
+        flops_shared_step: 0.0,
     }
 }
 
@@ -272,6 +385,89 @@ pub(crate) struct CaEdges<const D: usize> {
     mask: Vec<bool>,
     /// The kernels' scratch, shared by every edge (it stays in cache).
     work: CaWork,
+    /// With `adaptive`: every (edge, run) filter with its sensitivities, and the noise scales
+    /// its agents learn ([`super::adaptive`]); the batches above are then unused (empty).
+    pub(crate) adaptive: Option<AdaptiveCa>,
+}
+
+/// The adaptive form of [`CaEdges`].
+#[derive(Debug, Clone)]
+pub(crate) struct AdaptiveCa {
+    pub(crate) bank: Bank,
+    pub(crate) assumed: Assumed,
+    owners: std::ops::Range<usize>,
+    /// Scratch: one run's observation and its covariance (D × D, row-major).
+    y: Vec<f64>,
+    rt: Vec<f64>,
+}
+
+/// `w` packed (upper triangle, [`packed_index`]) with each entry repeated over `runs` lanes.
+fn packed_lanes<const D: usize>(w: &SMatrix<f64, D, D>, runs: usize) -> Vec<f64> {
+    let mut v = vec![0.0; packed_len(D) * runs];
+    for a in 0..D {
+        for b in a..D {
+            let k = packed_index(D, a, b);
+            v[k * runs..(k + 1) * runs].fill(w[(a, b)]);
+        }
+    }
+    v
+}
+
+impl AdaptiveCa {
+    /// Every (edge, run) filter of the CA model `model` with measurement covariances `w`
+    /// (the filter's `R_ij / T`), learning `adapt`.
+    fn new<const D: usize>(
+        m: &Model,
+        model: &CaModel<D>,
+        w: &[SMatrix<f64, D, D>],
+        assumed: Assumed,
+        runs: usize,
+        adapt: Adaptation,
+    ) -> Self {
+        let n = 3 * D;
+        let (f, q) = (model.f(), model.q());
+        let blocks = (0..m.num_edges())
+            .map(|e| BlockModel {
+                n,
+                m: D,
+                f: Some((0..n * n).map(|k| f[(k / n, k % n)]).collect()),
+                q: (0..n * n).map(|k| q[(k / n, k % n)]).collect(),
+                r: (0..D * D).map(|k| w[e][(k / D, k % D)]).collect(),
+                owner: m.edges()[e].0,
+            })
+            .collect();
+        let p0: Vec<Vec<f64>> = (0..m.num_edges())
+            .map(|e| {
+                let c = initial_covariance::<D>(&m.edge_p0(e, e));
+                (0..n * n).map(|k| c[(k / n, k % n)]).collect()
+            })
+            .collect();
+        Self {
+            bank: Bank::new(blocks, &p0, m.agents(), runs, adapt),
+            assumed,
+            owners: m.owners(),
+            y: vec![0.0; D],
+            rt: vec![0.0; D * D],
+        }
+    }
+}
+
+impl<const D: usize> AxesBasis<D> {
+    /// The decoupled form's basis `u` with each edge's variances `w` in it, for `runs` runs.
+    fn new(u: SMatrix<f64, D, D>, w: &[SMatrix<f64, D, D>], runs: usize) -> Self {
+        Self {
+            u,
+            identity: u == SMatrix::<f64, D, D>::identity(),
+            w: w.iter()
+                .map(|we| {
+                    std::array::from_fn(|d| (u.column(d).transpose() * we * u.column(d))[(0, 0)])
+                })
+                .collect(),
+            mask: vec![false; D * runs],
+            rt: vec![1.0; D * runs],
+            yt: vec![0.0; D * runs],
+        }
+    }
 }
 
 impl<const D: usize> AxesBasis<D> {
@@ -338,25 +534,37 @@ impl<const D: usize> CaEdges<D> {
     ///
     /// # Panics
     /// If σ_w or Δt is not positive (the kinds check both) or D ∉ {1, 2, 3}.
+    #[cfg(test)]
     pub(crate) fn new(m: &Model, sigma_w: f64, samples: usize, runs: usize, axes_ok: bool) -> Self {
+        Self::with_noise(m, &CaNoise::fixed(sigma_w), samples, runs, axes_ok)
+    }
+
+    /// [`Self::new`] with the noise the filters assume and what they learn.
+    pub(crate) fn with_noise(
+        m: &Model,
+        noise: &CaNoise,
+        samples: usize,
+        runs: usize,
+        axes_ok: bool,
+    ) -> Self {
+        let sigma_w = noise.sigma_w;
         let model = CaModel::<D>::new(m.dt(), sigma_w).expect("checked by the kind");
         let ne = m.num_edges();
         let n = 3 * D;
-        let w: Vec<SMatrix<f64, D, D>> = m.mean_cov(samples).iter().map(to_static::<D>).collect();
-        let np = packed_len(D);
-        let w_packed = w
+        let w: Vec<SMatrix<f64, D, D>> = m
+            .mean_cov(samples)
             .iter()
-            .map(|we| {
-                let mut v = vec![0.0; np * runs];
-                for a in 0..D {
-                    for b in a..D {
-                        let k = packed_index(D, a, b);
-                        v[k * runs..(k + 1) * runs].fill(we[(a, b)]);
-                    }
-                }
-                v
+            .map(|w| {
+                let w = to_static::<D>(w);
+                noise.r_scale.map_or(w, |s| w * s)
             })
             .collect();
+        let adaptive = noise
+            .adapt
+            .map(|adapt| AdaptiveCa::new(m, &model, &w, noise.assumed, runs, adapt));
+        let lanes = if adaptive.is_some() { 0 } else { runs };
+        let np = packed_len(D);
+        let w_packed = w.iter().map(|we| packed_lanes(we, runs)).collect();
         let p0: Vec<DMatrix<f64>> = (0..ne).map(|e| m.edge_p0(e, e)).collect();
         // The basis common to every edge of the formation (an agent's own filters take the
         // same basis as the whole formation's, so their arithmetic is the same).
@@ -365,7 +573,7 @@ impl<const D: usize> CaEdges<D> {
             .iter()
             .map(|r| to_static::<D>(&(r / samples as f64)))
             .collect();
-        let axes = if axes_ok && p0.iter().all(is_isotropic) {
+        let axes = if adaptive.is_none() && axes_ok && p0.iter().all(is_isotropic) {
             common_axes(&w_all)
         } else {
             None
@@ -381,8 +589,14 @@ impl<const D: usize> CaEdges<D> {
                     .expect("valid initial covariance"),
             ),
         };
-        let banks = p0.iter().map(|p| bank(p, runs)).collect();
-        let shared = p0.iter().map(|p| Some(bank(p, 1))).collect();
+        let (banks, shared) = if adaptive.is_some() {
+            (Vec::new(), Vec::new())
+        } else {
+            (
+                p0.iter().map(|p| bank(p, lanes)).collect(),
+                p0.iter().map(|p| Some(bank(p, 1))).collect(),
+            )
+        };
         Self {
             model,
             axis_model: model.axis(),
@@ -391,20 +605,7 @@ impl<const D: usize> CaEdges<D> {
             owners: m.agent_edges().to_vec(),
             banks,
             shared,
-            axes: axes.map(|u| AxesBasis {
-                u,
-                identity: u == SMatrix::<f64, D, D>::identity(),
-                w: w.iter()
-                    .map(|we| {
-                        std::array::from_fn(|d| {
-                            (u.column(d).transpose() * we * u.column(d))[(0, 0)]
-                        })
-                    })
-                    .collect(),
-                mask: vec![false; D * runs],
-                rt: vec![1.0; D * runs],
-                yt: vec![0.0; D * runs],
-            }),
+            axes: axes.map(|u| AxesBasis::new(u, &w, runs)),
             w_packed,
             w,
             x: vec![0.0; ne * D * runs],
@@ -412,7 +613,8 @@ impl<const D: usize> CaEdges<D> {
             mask: vec![false; runs],
             rt: vec![0.0; np * runs],
             yt: vec![0.0; D * runs],
-            work: CaWork::for_runs(D * runs, D),
+            work: CaWork::for_runs(D * lanes, D),
+            adaptive,
         }
     }
 
@@ -424,6 +626,12 @@ impl<const D: usize> CaEdges<D> {
 
     /// Prediction of edge `e`'s filters.
     pub(crate) fn predict(&mut self, e: usize) {
+        if let Some(ad) = &mut self.adaptive {
+            for r in 0..self.runs {
+                ad.bank.predict(e, r, None);
+            }
+            return;
+        }
         let work = &mut self.work;
         match (&mut self.banks[e], &mut self.shared[e]) {
             (CaBank::Full(b), None) => b.predict_in(&self.model, work),
@@ -475,18 +683,12 @@ impl<const D: usize> CaEdges<D> {
     /// covariance into every run.
     pub(crate) fn correct(&mut self, e: usize, y: &[f64], observed: &[bool]) {
         let runs = self.runs;
-        if self.shared[e].is_some() {
-            let all = observed.iter().all(|&o| o);
-            let none = !all && !observed.iter().any(|&o| o) && !self.geo.iter().any(|&g| g);
-            if all || none {
-                self.correct_shared(e, y, all);
-                return;
-            }
-            match (&mut self.banks[e], self.shared[e].take()) {
-                (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, runs),
-                (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, runs),
-                _ => unreachable!("an edge's shared covariance has the form of its batch"),
-            }
+        if self.adaptive.is_some() {
+            self.correct_adaptive(e, y, observed);
+            return;
+        }
+        if self.shared[e].is_some() && self.correct_if_shared(e, y, observed) {
+            return;
         }
         match (&mut self.banks[e], &mut self.axes) {
             (CaBank::Full(b), _) => {
@@ -554,6 +756,64 @@ impl<const D: usize> CaEdges<D> {
         self.export(e);
     }
 
+    /// With edge `e`'s covariance still shared: corrects it in shared form when every run
+    /// observes it directly or none observes it at all (`true`), or else broadcasts the shared
+    /// covariance into every run (`false`: the caller corrects per run).
+    fn correct_if_shared(&mut self, e: usize, y: &[f64], observed: &[bool]) -> bool {
+        let all = observed.iter().all(|&o| o);
+        let none = !all && !observed.iter().any(|&o| o) && !self.geo.iter().any(|&g| g);
+        if all || none {
+            self.correct_shared(e, y, all);
+            return true;
+        }
+        match (&mut self.banks[e], self.shared[e].take()) {
+            (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, self.runs),
+            (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, self.runs),
+            _ => unreachable!("an edge's shared covariance has the form of its batch"),
+        }
+        false
+    }
+
+    /// [`Self::correct`] in the adaptive form: the direct measurement (it enters the
+    /// likelihood) or the geometric observation, per run.
+    fn correct_adaptive(&mut self, e: usize, y: &[f64], observed: &[bool]) {
+        let runs = self.runs;
+        let Some(ad) = &mut self.adaptive else {
+            return;
+        };
+        for r in 0..runs {
+            let res = if observed[r] {
+                for a in 0..D {
+                    ad.y[a] = y[a * runs + r];
+                }
+                ad.bank.correct(e, r, &ad.y, None, Obs::Direct)
+            } else if self.geo[r] {
+                for a in 0..D {
+                    ad.y[a] = self.yt[a * runs + r];
+                    for b in 0..D {
+                        ad.rt[a * D + b] = self.rt[packed_index(D, a, b) * runs + r];
+                    }
+                }
+                ad.bank.correct(e, r, &ad.y, None, Obs::Fixed(&ad.rt))
+            } else {
+                Ok(())
+            };
+            if res.is_err() {
+                // A non-finite estimate stops the filter (the engine's divergence policy).
+                self.x[e * D * runs + r] = f64::NAN;
+            }
+        }
+        self.export(e);
+    }
+
+    /// The end of a step (after every edge): with `adaptive`, each owned agent's step on its
+    /// noise scales.
+    pub(crate) fn end_step(&mut self) {
+        if let Some(ad) = &mut self.adaptive {
+            ad.bank.end_step(ad.owners.clone());
+        }
+    }
+
     /// [`Self::correct`] of an edge whose covariance is shared, at a step that observes it
     /// directly in every run (`all`) or in none.
     fn correct_shared(&mut self, e: usize, y: &[f64], all: bool) {
@@ -594,6 +854,18 @@ impl<const D: usize> CaEdges<D> {
     pub(crate) fn export(&mut self, e: usize) {
         let r = self.runs;
         let out = &mut self.x[e * D * r..(e + 1) * D * r];
+        if let Some(ad) = &self.adaptive {
+            for run in 0..r {
+                let (x, _) = ad.bank.state(e, run);
+                for a in 0..D {
+                    // A breakdown (NaN) stays.
+                    if !out[a * r + run].is_nan() {
+                        out[a * r + run] = x[a];
+                    }
+                }
+            }
+            return;
+        }
         match (&self.banks[e], &self.axes) {
             (CaBank::Full(b), _) => out.copy_from_slice(&b.mean()[..D * r]),
             (CaBank::Axes(b), Some(ax)) if ax.identity => out.copy_from_slice(&b.mean()[..D * r]),
@@ -625,6 +897,10 @@ impl<const D: usize> CaEdges<D> {
     /// eigenbasis for the decoupled form: the diagonal changes, the trace does not).
     #[inline]
     fn position_var(&self, e: usize, d: usize, r: usize) -> f64 {
+        if let Some(ad) = &self.adaptive {
+            let (_, p) = ad.bank.state(e, r);
+            return p[d * 3 * D + d];
+        }
         match (&self.banks[e], self.shared_cov(e)) {
             (_, Some(CaBank::Full(sb))) => sb.cov_entry(packed_index(3 * D, d, d), 0),
             (_, Some(CaBank::Axes(sb))) => sb.cov_entry(0, d),
@@ -656,6 +932,10 @@ impl<const D: usize> CaEdges<D> {
     /// The posterior covariance (3D × 3D) of edge `e` in run `r`, in the model's axes
     /// (allocates; for tests and diagnostics).
     pub(crate) fn covariance(&self, e: usize, r: usize) -> DMatrix<f64> {
+        if let Some(ad) = &self.adaptive {
+            let (_, p) = ad.bank.state(e, r);
+            return DMatrix::from_row_slice(3 * D, 3 * D, p);
+        }
         let (bank, r) = match self.shared_cov(e) {
             Some(sb) => (sb, 0),
             None => (&self.banks[e], r),
@@ -804,6 +1084,7 @@ impl<const D: usize> Estimator for RkfCa<D> {
         for e in 0..self.ca.edges.len() {
             self.ca.step_direct(e, s);
         }
+        self.ca.end_step();
         if let Some(p) = &mut self.pcrb {
             let e = p.edge();
             for r in 0..self.ca.runs {
@@ -830,20 +1111,21 @@ impl<const D: usize> Estimator for RkfCa<D> {
     }
 
     fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
-        if !provides_ca(self.metric_edge, self.pcrb.as_deref(), name) {
+        if !provides_ca_all(&self.ca, self.metric_edge, self.pcrb.as_deref(), name) {
             return false;
         }
         quantity_of_agents(self, name, s, out);
         true
     }
 
-    fn agent_quantity(&self, name: &str, i: usize, r: usize, _s: &Step<'_>) -> Option<f64> {
-        agent_quantity_ca(
+    fn agent_quantity(&self, name: &str, i: usize, r: usize, s: &Step<'_>) -> Option<f64> {
+        agent_quantity_ca_all(
             &self.ca,
             self.metric_edge,
             self.pcrb.as_deref(),
             name,
             (i, r),
+            s,
         )
     }
 }
@@ -859,6 +1141,38 @@ pub(crate) fn provides_ca<const D: usize>(
         "pcrb_trace" => pcrb.is_some(),
         _ => false,
     }
+}
+
+/// [`provides_ca`] plus the learnt noise scales of an adaptive CA filter.
+pub(crate) fn provides_ca_all<const D: usize>(
+    ca: &CaEdges<D>,
+    metric_edge: Option<usize>,
+    pcrb: Option<&dyn PcrbTrack<D>>,
+    name: &str,
+) -> bool {
+    provides_ca(metric_edge, pcrb, name)
+        || ca
+            .adaptive
+            .as_ref()
+            .is_some_and(|ad| provides(ad.bank.adaptation(), name))
+}
+
+/// [`agent_quantity_ca`] plus agent `i`'s learnt noise scales (while present, with edges).
+pub(crate) fn agent_quantity_ca_all<const D: usize>(
+    ca: &CaEdges<D>,
+    metric_edge: Option<usize>,
+    pcrb: Option<&dyn PcrbTrack<D>>,
+    name: &str,
+    (i, r): (usize, usize),
+    s: &Step<'_>,
+) -> Option<f64> {
+    if let (Some(ad), true) = (&ca.adaptive, name.starts_with("sigma_")) {
+        if ca.owners[i].is_empty() || !s.faults.present(i, r) {
+            return None;
+        }
+        return agent_scale(&ad.bank, ad.assumed, name, i, r);
+    }
+    agent_quantity_ca(ca, metric_edge, pcrb, name, (i, r))
 }
 
 /// Agent `i`'s `edge_cov_trace` and `pcrb_trace` in run `r` of a CA filter: the values of the
