@@ -158,7 +158,7 @@ fn processes_with(needle: &str) -> Vec<u32> {
 /// Starts a long swarm and waits until its world has started stepping.
 fn started_swarm(t: &Scratch, name: &str, extra: &[&str]) -> (Child, PathBuf, String) {
     let text = small("\"rkf\"", "").replace("steps = 150", "steps = 2000000");
-    let sc = write_scenario(&t, name, &text);
+    let sc = write_scenario(t, name, &text);
     let out = t.join(format!("{name}-out"));
     let mut args = vec![
         "swarm".to_string(),

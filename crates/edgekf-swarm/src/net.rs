@@ -91,7 +91,7 @@ impl Endpoints {
         insert(
             &mut c,
             "listen/endpoints",
-            &json_list(&[self.world.clone()]),
+            &json_list(std::slice::from_ref(&self.world)),
         )?;
         insert(&mut c, "connect/endpoints", "[]")?;
         open(c, &format!("listen on {}", self.world))
@@ -108,7 +108,7 @@ impl Endpoints {
         insert(
             &mut c,
             "connect/endpoints",
-            &json_list(&[self.world.clone()]),
+            &json_list(std::slice::from_ref(&self.world)),
         )?;
         open(c, &format!("connect to the world at {}", self.world))
     }
@@ -126,7 +126,7 @@ impl Endpoints {
             .filter(|&&j| j > i)
             .map(|&j| self.mesh(j))
             .collect();
-        insert(&mut c, "listen/endpoints", &json_list(&[me.clone()]))?;
+        insert(&mut c, "listen/endpoints", &json_list(std::slice::from_ref(&me)))?;
         insert(&mut c, "connect/endpoints", &json_list(&peers))?;
         open(c, &format!("listen on the mesh at {me}"))
     }
