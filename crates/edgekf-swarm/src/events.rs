@@ -1,7 +1,7 @@
 //! Every subscription of a process feeds one queue, so that the process's loop waits on one
 //! thing with one deadline.
 
-use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::time::Instant;
 
 use zenoh::sample::SampleKind;
@@ -106,9 +106,6 @@ impl Events {
         if deadline <= now {
             return self.rx.try_recv().ok();
         }
-        match self.rx.recv_timeout(deadline - now) {
-            Ok(e) => Some(e),
-            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => None,
-        }
+        self.rx.recv_timeout(deadline - now).ok()
     }
 }

@@ -61,7 +61,7 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
     let (ne, d, n) = (m.num_edges(), m.dim(), m.agents());
     let zeros_e = vec![0.0; ne * d];
     let zeros_n = vec![0.0; n * d];
-    let faults = Faults::none(n, &m.edges(), 1);
+    let faults = Faults::none(n, m.edges(), 1);
     let input = Step {
         k: 1,
         dt: sc.dt(),

@@ -234,7 +234,7 @@ impl Agent {
             lanes_msg.push(lane.prepare(self.id, k, self.dt, self.targets.as_ref()));
             any |= lane.est.exchange().is_some();
         }
-        Ok(any.then(|| Exchange {
+        Ok(any.then_some(Exchange {
             k,
             agent: self.id,
             lanes: lanes_msg,

@@ -150,7 +150,7 @@ fn default_rank_tol() -> f64 {
 pub fn nominal_epsilon_bound(m: &Model) -> Result<f64, String> {
     let s = consensus_stability(
         m.agents(),
-        &m.edges(),
+        m.edges(),
         &vec![true; m.agents()],
         InfeasibleRal::Masked,
         0.0,

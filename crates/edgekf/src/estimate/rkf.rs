@@ -628,7 +628,7 @@ mod tests {
                 .collect();
             let zeros_e = vec![0.0; ne * 2];
             let zeros_n = vec![0.0; m.agents() * 2];
-            let faults = Faults::none(m.agents(), &m.edges(), 1);
+            let faults = Faults::none(m.agents(), m.edges(), 1);
             let step = Step {
                 k: 1,
                 dt: m.dt(),

@@ -570,7 +570,7 @@ impl Scenario {
             d.registry,
         )?;
         // λ_max(L_ff) exactly, unless the cheap bound already shows the loop stable (large N).
-        let bound = lmax_followers_bound(&model.framework());
+        let bound = lmax_followers_bound(model.framework());
         let gain = match law {
             FollowerLaw::Static { gain } => gain,
             FollowerLaw::Pi { alpha, .. } => alpha,
@@ -579,7 +579,7 @@ impl Scenario {
         let lmax_ff = if model.agents() > 200 && d.dt * gain * bound < 1.0 {
             bound
         } else {
-            lmax_followers(&model.framework())
+            lmax_followers(model.framework())
         };
         let sc = Self {
             name: d.name,
@@ -636,9 +636,9 @@ impl Scenario {
             seed: self.seed,
             samples_per_step: self.samples,
             init_mean: self.init_mean.clone(),
-            init_cov: rows(&self.model.p()),
+            init_cov: rows(self.model.p()),
             init_around: self.init_around,
-            process_cov: rows(&self.model.q()),
+            process_cov: rows(self.model.q()),
             meas_cov: self.model.r().iter().map(rows).collect(),
             estimators: self.estimators.iter().map(|e| e.label.clone()).collect(),
             estimator_specs: Some(self.estimators.iter().map(EstimatorDef::entry).collect()),
@@ -745,9 +745,9 @@ impl Scenario {
         check::representable(
             k,
             &self.init_mean,
-            &self.model.p(),
-            &self.model.q(),
-            &self.model.r(),
+            self.model.p(),
+            self.model.q(),
+            self.model.r(),
             self.steps,
             self.model.dt(),
         )?;
@@ -771,7 +771,7 @@ impl Scenario {
     }
     /// The framework.
     pub fn framework(&self) -> &Framework {
-        &self.model.framework()
+        self.model.framework()
     }
     /// Δt.
     pub fn dt(&self) -> f64 {

@@ -64,7 +64,7 @@ fn cost_one(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut per_run_flops = 0.0;
     let mut shared_flops = 0.0;
     let mut output_rows = 0.0;
-    let q = Factor::of(&model.q(), model.dim());
+    let q = Factor::of(model.q(), model.dim());
     let draws = md + nd;
     let world_flops = match q {
         Factor::Zero => 0.0,

@@ -519,10 +519,10 @@ impl<'a> Progress<'a> {
 
     /// After step k: `false` when the observer asks to stop.
     fn after(&mut self, k: usize) -> bool {
-        if k % Self::EVERY != 0 && k != self.steps {
+        if !k.is_multiple_of(Self::EVERY) && k != self.steps {
             return true;
         }
-        let done = if k % Self::EVERY == 0 {
+        let done = if k.is_multiple_of(Self::EVERY) {
             Self::EVERY
         } else {
             k % Self::EVERY

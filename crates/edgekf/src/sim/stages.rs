@@ -40,7 +40,7 @@ impl<'a> Shared<'a> {
         let d = fw.dim();
         let (n, m) = (fw.agents(), fw.graph().num_edges());
         let runs = range.len();
-        let q_factor = Factor::of(&model.q(), d);
+        let q_factor = Factor::of(model.q(), d);
         let r_active = model.r().iter().any(|r| r.iter().any(|&v| v != 0.0));
         let comm_active = sc.estimators().iter().any(|e| {
             e.config()
@@ -61,7 +61,7 @@ impl<'a> Shared<'a> {
             avail_active,
         );
         let mut z0 = vec![0.0; n * d * runs];
-        world.initial_positions(sc.init_mean(), &model.p(), &mut z0);
+        world.initial_positions(sc.init_mean(), model.p(), &mut z0);
         let random = match plan.random_departures {
             Some((count, _)) if count > 0 => {
                 let followers: Vec<usize> = (0..n).filter(|i| !fw.leaders().contains(i)).collect();
@@ -73,7 +73,7 @@ impl<'a> Shared<'a> {
         let mut t_values: Vec<usize> = sc.estimators().iter().map(|e| e.samples()).collect();
         t_values.sort_unstable();
         t_values.dedup();
-        let sensing = Sensing::new(&model.r(), d, t_values, runs);
+        let sensing = Sensing::new(model.r(), d, t_values, runs);
         let traj = sc.trajectory();
         let mut shared = Shared {
             world,
