@@ -58,7 +58,6 @@ pub enum Control {
     },
 }
 
-
 /// The messages of one channel from every neighbour, and the link statistics.
 struct Mailbox<T> {
     channel: &'static str,
@@ -235,7 +234,11 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
 
 impl Node {
     fn put(&self, session_world: bool, key: &str, bytes: Vec<u8>) -> Result<(), SwarmError> {
-        let s = if session_world { &self.world } else { &self.mesh };
+        let s = if session_world {
+            &self.world
+        } else {
+            &self.mesh
+        };
         let cc = if session_world {
             CongestionControl::Block
         } else {
@@ -324,14 +327,20 @@ impl Node {
         let mut next_hello = Instant::now();
         while !self.started {
             if let Some(e) = &self.stopped {
-                let why = e.clone().unwrap_or_else(|| "it stopped before the start".into());
+                let why = e
+                    .clone()
+                    .unwrap_or_else(|| "it stopped before the start".into());
                 return Err(SwarmError::Stopped(why));
             }
             if Instant::now() >= deadline {
                 return Err(self.meet_timeout());
             }
             if Instant::now() >= next_hello {
-                self.put(false, &self.keys.hello(self.me), wire::encode(&self.id, &self.me))?;
+                self.put(
+                    false,
+                    &self.keys.hello(self.me),
+                    wire::encode(&self.id, &self.me),
+                )?;
                 if self.world_alive && self.hears_everyone() {
                     let status = self.keys.status(self.me);
                     self.put(true, &status, wire::encode(&self.id, &Status::Ready))?;
@@ -354,7 +363,10 @@ impl Node {
         let o = &self.o;
         if !self.world_alive {
             return SwarmError::timeout(
-                format!("agent {}: no world answered at {}", self.me, o.endpoints.world),
+                format!(
+                    "agent {}: no world answered at {}",
+                    self.me, o.endpoints.world
+                ),
                 o.timeout,
                 "start `edgekf world` there, or give its endpoint with --world",
             );
@@ -367,7 +379,10 @@ impl Node {
             .collect();
         if !missing.is_empty() {
             return SwarmError::timeout(
-                format!("agent {}: neighbours {missing:?} were not heard on the mesh", self.me),
+                format!(
+                    "agent {}: neighbours {missing:?} were not heard on the mesh",
+                    self.me
+                ),
                 o.timeout,
                 "are their processes running, and is UDP open between the mesh endpoints?",
             );
@@ -396,7 +411,11 @@ impl Node {
                     .begin(&sensing, |j| inputs.get(j, k.saturating_sub(1)))?
             };
             if let Some(x) = ex {
-                self.put(false, &self.keys.exchange(self.me), wire::encode(&self.id, &x))?;
+                self.put(
+                    false,
+                    &self.keys.exchange(self.me),
+                    wire::encode(&self.id, &x),
+                )?;
                 self.sent_exchanges += 1;
                 let expected = self.expected(&sensing);
                 self.await_mail(k, &expected, false)?;
@@ -410,9 +429,17 @@ impl Node {
             for l in &mut input.lanes {
                 l.report = None;
             }
-            self.put(false, &self.keys.input(self.me), wire::encode(&self.id, &input))?;
+            self.put(
+                false,
+                &self.keys.input(self.me),
+                wire::encode(&self.id, &input),
+            )?;
             self.sent_inputs += 1;
-            self.put(true, &self.keys.output(self.me), wire::encode(&self.id, &out))?;
+            self.put(
+                true,
+                &self.keys.output(self.me),
+                wire::encode(&self.id, &out),
+            )?;
             if self.stopped.is_some() {
                 return self.stop_result();
             }

@@ -88,7 +88,11 @@ impl Endpoints {
     /// [`SwarmError::Zenoh`] when it cannot listen there.
     pub fn open_world(&self) -> Result<Session, SwarmError> {
         let mut c = self.base()?;
-        insert(&mut c, "listen/endpoints", &json_list(std::slice::from_ref(&self.world)))?;
+        insert(
+            &mut c,
+            "listen/endpoints",
+            &json_list(std::slice::from_ref(&self.world)),
+        )?;
         insert(&mut c, "connect/endpoints", "[]")?;
         open(c, &format!("listen on {}", self.world))
     }
@@ -101,7 +105,11 @@ impl Endpoints {
     pub fn open_agent_world(&self) -> Result<Session, SwarmError> {
         let mut c = self.base()?;
         insert(&mut c, "listen/endpoints", "[]")?;
-        insert(&mut c, "connect/endpoints", &json_list(std::slice::from_ref(&self.world)))?;
+        insert(
+            &mut c,
+            "connect/endpoints",
+            &json_list(std::slice::from_ref(&self.world)),
+        )?;
         open(c, &format!("connect to the world at {}", self.world))
     }
 
@@ -118,7 +126,11 @@ impl Endpoints {
             .filter(|&&j| j > i)
             .map(|&j| self.mesh(j))
             .collect();
-        insert(&mut c, "listen/endpoints", &json_list(std::slice::from_ref(&me)))?;
+        insert(
+            &mut c,
+            "listen/endpoints",
+            &json_list(std::slice::from_ref(&me)),
+        )?;
         insert(&mut c, "connect/endpoints", &json_list(&peers))?;
         open(c, &format!("listen on the mesh at {me}"))
     }

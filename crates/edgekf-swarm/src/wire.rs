@@ -24,7 +24,9 @@ pub enum WireError {
         source: serde_json::Error,
     },
     /// Another version of the format.
-    #[error("a message on `{key}` has wire version {got}; this program speaks version {WIRE_VERSION}")]
+    #[error(
+        "a message on `{key}` has wire version {got}; this program speaks version {WIRE_VERSION}"
+    )]
     Version {
         /// Where it came.
         key: String,
@@ -145,10 +147,11 @@ pub fn decode<T: DeserializeOwned>(
             our_hash: id.hash.clone(),
         });
     }
-    let env: EnvelopeIn<T> = serde_json::from_slice(bytes).map_err(|source| WireError::Malformed {
-        key: key.into(),
-        source,
-    })?;
+    let env: EnvelopeIn<T> =
+        serde_json::from_slice(bytes).map_err(|source| WireError::Malformed {
+            key: key.into(),
+            source,
+        })?;
     let _ = (env.v, env.scenario, env.name);
     Ok((env.body, env.sent_ns))
 }

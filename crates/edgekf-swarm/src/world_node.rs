@@ -191,7 +191,11 @@ impl Node<'_> {
         Ok(())
     }
 
-    fn wait_until(&mut self, deadline: Instant, done: impl Fn(&Self) -> bool) -> Result<bool, SwarmError> {
+    fn wait_until(
+        &mut self,
+        deadline: Instant,
+        done: impl Fn(&Self) -> bool,
+    ) -> Result<bool, SwarmError> {
         loop {
             if done(self) {
                 return Ok(true);
@@ -230,7 +234,9 @@ impl Node<'_> {
                 .arg("-c")
                 .arg(cmd)
                 .status()
-                .map_err(|e| SwarmError::Process(format!("cannot run --after-ready `{cmd}`: {e}")))?;
+                .map_err(|e| {
+                    SwarmError::Process(format!("cannot run --after-ready `{cmd}`: {e}"))
+                })?;
             if !status.success() {
                 return Err(SwarmError::Process(format!(
                     "--after-ready `{cmd}` failed ({status})"
@@ -240,7 +246,11 @@ impl Node<'_> {
         self.put(&self.keys.control(), &Control::Start)
     }
 
-    fn steps(&mut self, sc: &Scenario, on_step: &mut dyn FnMut(usize)) -> Result<StepsOutcome, SwarmError> {
+    fn steps(
+        &mut self,
+        sc: &Scenario,
+        on_step: &mut dyn FnMut(usize),
+    ) -> Result<StepsOutcome, SwarmError> {
         let mut world = if self.o.live {
             World::live(sc)
         } else {

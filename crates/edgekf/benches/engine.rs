@@ -81,10 +81,11 @@ fn minimal(sc: &Scenario) -> f64 {
     let q: Vec<Mat<D>> = (0..me)
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_q(e, e)[(a, b)]))
         .collect();
-    let w: Vec<Mat<D>> =
-        m.r().iter()
-            .map(|r| Mat::<D>::from_fn(|a, b| r[(a, b)] / t))
-            .collect();
+    let w: Vec<Mat<D>> = m
+        .r()
+        .iter()
+        .map(|r| Mat::<D>::from_fn(|a, b| r[(a, b)] / t))
+        .collect();
     let mut sig: Vec<Mat<D>> = (0..me)
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_p0(e, e)[(a, b)]))
         .collect();

@@ -65,7 +65,11 @@ fn agents_in_lockstep_reproduce_the_engine_on_every_shipped_scenario() {
             if !files.insert(file) {
                 continue;
             }
-            let steps = if file.starts_with("garkf-fig13") { 120 } else { 400 };
+            let steps = if file.starts_with("garkf-fig13") {
+                120
+            } else {
+                400
+            };
             let Some(sc) = shipped(file, text, steps) else {
                 continue;
             };
@@ -121,7 +125,10 @@ fn centralised_kinds_and_bad_ids_are_refused_by_name() {
         "{err}"
     );
     assert!(err.to_string().contains("centralised"), "{err}");
-    assert!(matches!(lockstep(&sc, &Quiet), Err(LockstepError::Agent(_))));
+    assert!(matches!(
+        lockstep(&sc, &Quiet),
+        Err(LockstepError::Agent(_))
+    ));
     let spec = ScenarioSpec::minimal("c", &["rkf"]);
     let sc = Scenario::from_spec(&spec, None).expect("valid");
     let err = Agent::new(&sc, 10, false).err().expect("refused");

@@ -284,13 +284,16 @@ impl Agent {
             what,
         };
         if s.k != self.k + 1 {
-            return Err(bad(format!("sensing of step {} where step {} was next", s.k, self.k + 1)));
+            return Err(bad(format!(
+                "sensing of step {} where step {} was next",
+                s.k,
+                self.k + 1
+            )));
         }
         let deg = self.edges.len();
         let comm_ok = s.comm.is_empty() || s.comm.len() == deg;
         let lanes_ok = s.lanes.len() == self.lanes.len()
-            && s
-                .lanes
+            && s.lanes
                 .iter()
                 .all(|l| l.y.len() == deg * self.d && l.position.len() == self.d);
         if s.observed.len() != deg || !comm_ok || !lanes_ok {
@@ -330,7 +333,11 @@ impl AgentLane {
             *p.measurement_faults = local.measurement_faults();
             *p.messages_lost = lossy;
             *p.hears = vec![true; deg];
-            if def.config().link_failure().is_some_and(|p| p > 0.0 && p < 1.0) {
+            if def
+                .config()
+                .link_failure()
+                .is_some_and(|p| p > 0.0 && p < 1.0)
+            {
                 *p.comm = vec![1.0; deg];
             }
         }

@@ -147,7 +147,15 @@ impl<'a> World<'a> {
                 y: &mut lane.y,
                 du: &mut lane.du,
             }
-            .form(self.cx.edges, &lane.z, &lane.u, vbar, self.cx.d, self.cx.dt, 1);
+            .form(
+                self.cx.edges,
+                &lane.z,
+                &lane.u,
+                vbar,
+                self.cx.d,
+                self.cx.dt,
+                1,
+            );
         }
         let f = &self.shared.faults.out;
         let d = self.cx.d;
@@ -260,9 +268,10 @@ impl<'a> World<'a> {
 
 /// What the first agent (in id order) that reports a breakdown of estimator `l` says.
 fn first_breakdown<'o>(outputs: &[Option<&'o Output>], l: usize) -> Option<&'o str> {
-    outputs
-        .iter()
-        .find_map(|o| o.and_then(|o| o.lanes.get(l)).and_then(|lo| lo.breakdown.as_deref()))
+    outputs.iter().find_map(|o| {
+        o.and_then(|o| o.lanes.get(l))
+            .and_then(|lo| lo.breakdown.as_deref())
+    })
 }
 
 impl WorldLane {
@@ -340,7 +349,8 @@ impl Estimator for Gathered {
         let Some(q) = self.quantities.iter().position(|x| *x == name) else {
             return false;
         };
-        out[0] = AgentStat::of(name).summarise(self.values.iter().map(|v| v.get(q).copied().flatten()));
+        out[0] =
+            AgentStat::of(name).summarise(self.values.iter().map(|v| v.get(q).copied().flatten()));
         true
     }
 }

@@ -755,7 +755,13 @@ impl<const D: usize> Estimator for Garkf<D> {
         if AGENT_QUANTITIES.contains(&name) {
             return self.agent_value(name, i, r, s);
         }
-        agent_quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), name, (i, r))
+        agent_quantity_ca(
+            &self.ca,
+            self.metric_edge,
+            self.pcrb.as_deref(),
+            name,
+            (i, r),
+        )
     }
 
     fn exchange(&mut self) -> Option<&mut dyn Exchange> {

@@ -38,9 +38,9 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::{cov_trace_of_agents, 
-    check_kalman, options_of, parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind,
-    Model, Options, Step,
+use super::{
+    check_kalman, cov_trace_of_agents, options_of, parse_options, Breakdown, Configured, Cost,
+    Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
 

@@ -17,7 +17,10 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
-use super::{cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
+use super::{
+    cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Cost, Estimator, EstimatorKind,
+    Model, Options, Step,
+};
 
 /// `kind = "none"`: one raw sample per step.
 #[derive(Debug, Clone, Copy)]

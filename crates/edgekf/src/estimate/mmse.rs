@@ -16,9 +16,9 @@ use std::sync::Arc;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::{cov_trace_of_agents, edge_trace_sum, 
-    options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
-    Options, Step,
+use super::{
+    cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static, Configured, Cost,
+    Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;

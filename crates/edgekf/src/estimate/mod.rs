@@ -70,8 +70,8 @@ use serde::Serialize;
 pub use crate::step::{Faults, Step, Target};
 
 pub use ar::ArModel;
-pub use model::{Model, Scope};
 pub(crate) use model::ModelParts;
+pub use model::{Model, Scope};
 
 /// An estimator's options as written in a scenario file (the entry without `kind`, `label` and
 /// `samples`).

@@ -46,9 +46,9 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
-use super::{cov_trace_of_agents, edge_trace_sum, 
-    check_kalman, options_of, parse_options, to_static, Breakdown, Configured, Cost, Estimator,
-    EstimatorKind, Model, Options, Step,
+use super::{
+    check_kalman, cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static,
+    Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -249,9 +249,7 @@ impl<const D: usize> Rkf<D> {
         let sigma0: Vec<Mat<D>> = (0..ne).map(|e| to_static::<D>(&m.edge_p0(e, e))).collect();
         let (coeffs, extra, hist) = match input {
             Input::Ar { .. } => {
-                let ar =
-                    m.ar()
-                        .expect("rkf-ar is configured with an AR model");
+                let ar = m.ar().expect("rkf-ar is configured with an AR model");
                 let mut extra = Mat::<D>::zeros();
                 for d in 0..D {
                     extra[(d, d)] = m.dt() * m.dt() * ar.noise_var[d];

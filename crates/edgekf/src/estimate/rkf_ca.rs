@@ -37,9 +37,9 @@ use serde::{Deserialize, Serialize};
 
 use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
 use super::pcrb::{EdgePcrb, GaPrior, Observation};
-use super::{cov_trace_of_agents, quantity_of_agents, 
-    options_of, parse_options, to_static, Configured, Cost, Estimator, EstimatorKind, Model,
-    Options, Step,
+use super::{
+    cov_trace_of_agents, options_of, parse_options, quantity_of_agents, to_static, Configured,
+    Cost, Estimator, EstimatorKind, Model, Options, Step,
 };
 
 /// `kind = "rkf-ca"`.
@@ -838,7 +838,13 @@ impl<const D: usize> Estimator for RkfCa<D> {
     }
 
     fn agent_quantity(&self, name: &str, i: usize, r: usize, _s: &Step<'_>) -> Option<f64> {
-        agent_quantity_ca(&self.ca, self.metric_edge, self.pcrb.as_deref(), name, (i, r))
+        agent_quantity_ca(
+            &self.ca,
+            self.metric_edge,
+            self.pcrb.as_deref(),
+            name,
+            (i, r),
+        )
     }
 }
 

@@ -32,9 +32,9 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
-use super::{cov_trace_of_agents, edge_trace_sum, 
-    check_kalman, parse_options, to_static, Breakdown, Configured, Cost, Estimator, EstimatorKind,
-    Model, Options, Step,
+use super::{
+    check_kalman, cov_trace_of_agents, edge_trace_sum, parse_options, to_static, Breakdown,
+    Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
