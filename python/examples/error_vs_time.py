@@ -4,7 +4,8 @@
 
 Runs a short version of the EUSIPCO study (hexagon, N = 10, 60 directed edges), plots the
 estimation error ε_k (thesis eq. 4.34) of each estimator with a ±1 std band across runs, and
-saves `error_vs_time.png` plus the CLI's tables in OUT_DIR (default: `edgekf-example`).
+saves `error_vs_time.png` in OUT_DIR (default: `edgekf-example`) and the CLI's files of the
+study in OUT_DIR/eusipco (a study's folder holds only the files it wrote).
 """
 
 import pathlib
@@ -35,8 +36,9 @@ ax.set(xscale="log", yscale="log", xlabel="time [s]", ylabel="estimation error �
        title=f"{res.scenario['name']}: {res.runs} runs")
 ax.legend()
 
-# 3. Keep: the figure and the CLI's files.
+# 3. Keep: the figure, and the CLI's files in a folder of their own (outputs never mix: a
+# study's folder holds only what the study wrote, so our figure goes beside it, not in it).
 out.mkdir(parents=True, exist_ok=True)
 fig.savefig(out / "error_vs_time.png", dpi=100)
-res.save(out)
-print(f"wrote {out / 'error_vs_time.png'} and the tables in {out}")
+res.save(out / "eusipco")
+print(f"wrote {out / 'error_vs_time.png'} and the study's files in {out / 'eusipco'}")

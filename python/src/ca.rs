@@ -38,28 +38,67 @@ fn err(msg: String) -> PyErr {
     PyValueError::new_err(msg)
 }
 
-/// The row-major `n × n` matrix `m`, if it is symmetric to 1e-12 relative.
-fn symmetric(m: &[f64], n: usize) -> Option<DMatrix<f64>> {
+/// Checks a covariance argument (row-major `n × n`, finite entries): symmetric to 1e-12
+/// relative, and positive semidefinite (eigenvalues ≥ −1e-12 · max |entry|) or, with
+/// `definite`, positive definite (a Cholesky factor exists). The message names `what` (the
+/// argument, and the edge of a batch) and says what fails, with the number.
+pub(crate) fn check_cov(m: &[f64], n: usize, what: &str, definite: bool) -> PyResult<()> {
     let a = DMatrix::from_row_slice(n, n, m);
     let scale = a.amax();
-    (0..n)
-        .all(|i| (0..i).all(|j| (a[(i, j)] - a[(j, i)]).abs() <= 1e-12 * scale))
-        .then_some(a)
-}
-
-/// Whether `m` is symmetric positive definite (a Cholesky factorisation exists).
-fn spd(m: &[f64], n: usize) -> bool {
-    symmetric(m, n).is_some_and(|a| a.cholesky().is_some())
-}
-
-/// Whether `m` is symmetric positive semidefinite (eigenvalues ≥ −1e-12 · max |entry|).
-fn spsd(m: &[f64], n: usize) -> bool {
-    symmetric(m, n).is_some_and(|a| {
-        let scale = a.amax();
-        a.symmetric_eigenvalues()
+    for i in 0..n {
+        for j in 0..i {
+            if (a[(i, j)] - a[(j, i)]).abs() > 1e-12 * scale {
+                return Err(err(format!(
+                    "{what}: must be symmetric, but entry ({i}, {j}) = {:e} and ({j}, {i}) = {:e}",
+                    a[(i, j)],
+                    a[(j, i)]
+                )));
+            }
+        }
+    }
+    let smallest = || {
+        a.clone()
+            .symmetric_eigenvalues()
             .iter()
-            .all(|&l| l >= -1e-12 * scale)
-    })
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    };
+    if definite {
+        if a.clone().cholesky().is_none() {
+            return Err(err(format!(
+                "{what}: must be symmetric positive definite, but its smallest eigenvalue is {:e}",
+                smallest()
+            )));
+        }
+    } else {
+        let l = smallest();
+        if l < -1e-12 * scale {
+            return Err(err(format!(
+                "{what}: must be symmetric positive semidefinite, but its smallest eigenvalue is {l:e}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Checks every matrix of a shared (`n × n`) or per-edge (`B × n × n`) covariance argument.
+pub(crate) fn check_covs(
+    m: &[f64],
+    n: usize,
+    shared: bool,
+    what: &str,
+    definite: bool,
+) -> PyResult<()> {
+    let count = if shared { 1 } else { m.len() / (n * n).max(1) };
+    for e in 0..count {
+        let name = if shared {
+            what.to_string()
+        } else {
+            format!("{what} of edge {e}")
+        };
+        check_cov(&m[e * n * n..(e + 1) * n * n], n, &name, definite)?;
+    }
+    Ok(())
 }
 
 impl<const D: usize> Bank<D> {
@@ -175,33 +214,11 @@ impl CaBank {
         let p_shared = p0.shape() == [n, n];
         let p_want: Vec<usize> = if p_shared { vec![n, n] } else { vec![b, n, n] };
         let p = flat(&p0, "P0", &p_want)?;
-        for e in 0..if p_shared { 1 } else { b } {
-            if !spsd(&p[e * n * n..(e + 1) * n * n], n) {
-                return Err(err(format!(
-                    "P0{}: must be symmetric positive semidefinite",
-                    if p_shared {
-                        String::new()
-                    } else {
-                        format!(" of edge {e}")
-                    }
-                )));
-            }
-        }
+        check_covs(&p, n, p_shared, "P0", false)?;
         let r_shared = r.shape() == [d, d];
         let r_want: Vec<usize> = if r_shared { vec![d, d] } else { vec![b, d, d] };
         let rv = flat(&r, "R", &r_want)?;
-        for e in 0..if r_shared { 1 } else { b } {
-            if !spd(&rv[e * d * d..(e + 1) * d * d], d) {
-                return Err(err(format!(
-                    "R{}: must be symmetric positive definite",
-                    if r_shared {
-                        String::new()
-                    } else {
-                        format!(" of edge {e}")
-                    }
-                )));
-            }
-        }
+        check_covs(&rv, d, r_shared, "R", true)?;
         let bank = match d {
             1 => AnyBank::D1(Bank::new(b, dt, sigma_w, &x, &p, p_shared, &rv, r_shared)?),
             2 => AnyBank::D2(Bank::new(b, dt, sigma_w, &x, &p, p_shared, &rv, r_shared)?),

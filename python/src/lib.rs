@@ -24,12 +24,34 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArrayDyn,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyFileExistsError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+/// A Python exception for an error of the library or the files: `OSError` (with its errno, so
+/// Python raises `FileNotFoundError`, `PermissionError`, …) when the system refused a file or
+/// folder, `FileExistsError` when an output folder holds another study, else `ValueError`.
 fn value_err(e: impl Into<anyhow::Error>) -> PyErr {
-    PyValueError::new_err(format!("{:#}", e.into()))
+    let e: anyhow::Error = e.into();
+    let msg = format!("{e:#}");
+    for cause in e.chain() {
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            return match io.raw_os_error() {
+                Some(code) => PyOSError::new_err((code, msg)),
+                None => PyOSError::new_err(msg),
+            };
+        }
+        if let Some(o) = cause.downcast_ref::<edgekf_io::outdir::OutDirError>() {
+            return match o {
+                edgekf_io::outdir::OutDirError::Io { source, .. } => match source.raw_os_error() {
+                    Some(code) => PyOSError::new_err((code, msg)),
+                    None => PyOSError::new_err(msg),
+                },
+                _ => PyFileExistsError::new_err(msg),
+            };
+        }
+    }
+    PyValueError::new_err(msg)
 }
 
 /// Loads a scenario: `text` of a file (`source` its path) or a JSON object from a dict.
@@ -63,6 +85,54 @@ fn overrides(
         sc = sc.with_seed(s);
     }
     Ok(sc)
+}
+
+/// Available memory from `/proc/meminfo` (Linux), in bytes.
+fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// The limits of the CLI, checked before the work: time `max_hours` (`--max-hours`, default
+/// 1 h) and 80 % of the available memory; the message names the parameter that changes it.
+fn check_limits(what: &str, bytes: f64, seconds: f64, max_hours: f64, lower: &str) -> PyResult<()> {
+    use edgekf::sim::cost::{human_bytes, human_seconds};
+    if !(max_hours.is_finite() && max_hours > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "max_hours: must be a number of hours > 0, got {max_hours}"
+        )));
+    }
+    if let Some(avail) = available_memory() {
+        if bytes > 0.8 * avail {
+            return Err(PyValueError::new_err(format!(
+                "{what} needs about {} of memory but {} is available (the limit is 80 % of it); {lower}",
+                human_bytes(bytes),
+                human_bytes(avail)
+            )));
+        }
+    }
+    if seconds > max_hours * 3600.0 {
+        return Err(PyValueError::new_err(format!(
+            "{what} would take about {}; the limit is {max_hours} h (max_hours, default 1 h; raise it to run it anyway); {lower}",
+            human_seconds(seconds)
+        )));
+    }
+    Ok(())
+}
+
+/// [`check_limits`] of a study on `threads` workers (default: one per core).
+fn check_study(sc: &Scenario, threads: Option<usize>, max_hours: f64) -> PyResult<()> {
+    let t = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let c = sim::cost(sc, sc.runs(), t.max(1));
+    check_limits(
+        &format!("{}: this study", sc.name()),
+        c.bytes,
+        c.seconds,
+        max_hours,
+        "lower runs or steps, raise every, or drop the costliest estimator",
+    )
 }
 
 struct Obs {
@@ -299,8 +369,18 @@ impl PyRes {
     /// Writes the CLI's files into `dir` (created if missing), atomically: the tables, a sweep's
     /// `summary.csv` and `sweep_metrics.csv`, `provenance.json` (with `command`) and, when
     /// `figures`, the scenario's figures.
-    #[pyo3(signature = (dir, command, figures=true))]
-    fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool) -> PyResult<()> {
+    /// The folder must be new, empty, or hold this same study (its `provenance.json` names
+    /// it); with `force` it is emptied first (`edgekf_io::outdir`).
+    #[pyo3(signature = (dir, command, figures=true, force=false))]
+    fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool, force: bool) -> PyResult<()> {
+        use edgekf_io::outdir;
+        let id = outdir::StudyId::study(self.sc.name());
+        let hint = outdir::Hint {
+            out: "folder",
+            force: "force=True",
+        };
+        let prep = outdir::prepare(&dir, &id, force, hint)
+            .map_err(|e| value_err(anyhow::Error::new(e)))?;
         let mut st = edgekf_io::Staged::new(&dir).map_err(value_err)?;
         if let Some(sw) = &self.sweep {
             st.write("summary.csv", edgekf_io::summary_csv(sw).as_bytes())
@@ -313,11 +393,6 @@ impl PyRes {
             .map_err(value_err)?;
         }
         edgekf_io::stage_tables(&mut st, &self.sc, &self.res).map_err(value_err)?;
-        st.write(
-            "provenance.json",
-            edgekf_io::Provenance::new(command).to_json().as_bytes(),
-        )
-        .map_err(value_err)?;
         if figures {
             let extra = edgekf_figure::plot_garkf::Extra {
                 sweep: self.sweep.as_ref(),
@@ -326,7 +401,16 @@ impl PyRes {
             edgekf_figure::render_study(|f| st.path(f), &self.sc, &self.res, None, &extra)
                 .map_err(value_err)?;
         }
-        st.commit().map_err(value_err)
+        let mut names = st.names();
+        st.write(
+            "provenance.json",
+            outdir::provenance_json(command, &id, &names).as_bytes(),
+        )
+        .map_err(value_err)?;
+        names.push("provenance.json".into());
+        st.commit().map_err(value_err)?;
+        prep.finish(&names)
+            .map_err(|e| value_err(anyhow::Error::new(e)))
     }
     /// A sweep's `summary.csv` as text (`None` without a sweep).
     fn summary_csv(&self) -> Option<String> {
@@ -355,7 +439,7 @@ impl PyRes {
 
 /// Runs a scenario given as file text (`is_dict = False`) or as the JSON of a dict.
 #[pyfunction]
-#[pyo3(signature = (source, text, base, is_dict, runs=None, steps=None, every=None, seed=None, threads=None, progress=false))]
+#[pyo3(signature = (source, text, base, is_dict, runs=None, steps=None, every=None, seed=None, threads=None, progress=false, max_hours=1.0))]
 #[allow(clippy::too_many_arguments)]
 fn run_text(
     py: Python<'_>,
@@ -369,10 +453,12 @@ fn run_text(
     seed: Option<u64>,
     threads: Option<usize>,
     progress: bool,
+    max_hours: f64,
 ) -> PyResult<PyRes> {
     let sc = load(source, text, base.as_deref(), is_dict).map_err(value_err)?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|e| value_err(e.context(source.to_string())))?;
+    check_study(&sc, threads, max_hours)?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;
     Ok(PyRes { sc, res, sweep })
 }
@@ -416,7 +502,7 @@ fn reproductions() -> Vec<(
 
 /// Runs a reproduction of the registry with the CLI's overrides.
 #[pyfunction]
-#[pyo3(signature = (name, runs=None, steps=None, every=None, seed=None, threads=None, progress=false))]
+#[pyo3(signature = (name, runs=None, steps=None, every=None, seed=None, threads=None, progress=false, max_hours=1.0))]
 #[allow(clippy::too_many_arguments)]
 fn reproduce(
     py: Python<'_>,
@@ -427,6 +513,7 @@ fn reproduce(
     seed: Option<u64>,
     threads: Option<usize>,
     progress: bool,
+    max_hours: f64,
 ) -> PyResult<PyRes> {
     let e = edgekf_io::reproductions::find(name).ok_or_else(|| {
         PyValueError::new_err(format!(
@@ -443,6 +530,7 @@ fn reproduce(
         .map_err(|err| PyValueError::new_err(err.to_string()))?;
     let sc = overrides(sc, runs, steps, every, seed)
         .map_err(|err| value_err(err.context(e.file.to_string())))?;
+    check_study(&sc, threads, max_hours)?;
     let (res, sweep) = simulate(py, &sc, threads, progress)?;
     Ok(PyRes { sc, res, sweep })
 }
@@ -464,7 +552,8 @@ fn dim_of(config: &[Vec<f64>]) -> PyResult<usize> {
 
 /// Designs weights; returns the `edgekf.framework/1` document as JSON text.
 #[pyfunction]
-#[pyo3(signature = (config, edges, method, leaders, leader_mode, name))]
+#[pyo3(signature = (config, edges, method, leaders, leader_mode, name, max_hours=1.0))]
+#[allow(clippy::too_many_arguments)]
 fn design_json(
     py: Python<'_>,
     config: Vec<Vec<f64>>,
@@ -473,8 +562,28 @@ fn design_json(
     leaders: Option<Vec<usize>>,
     leader_mode: Option<&str>,
     name: &str,
+    max_hours: f64,
 ) -> PyResult<String> {
     let method: Method = method.parse().map_err(PyValueError::new_err)?;
+    let c = design::cost::estimate(
+        config.len(),
+        config.first().map_or(0, Vec::len),
+        edges.len() as f64,
+        design::cost::Generation::Given,
+        method,
+    );
+    check_limits(
+        &format!(
+            "the design of {:?} ({} agents, {} candidate links)",
+            name,
+            config.len(),
+            edges.len()
+        ),
+        c.bytes,
+        c.seconds,
+        max_hours,
+        "thin the candidate links, or use method=\"yang\"",
+    )?;
     let mode: Option<LeaderMode> = match leader_mode {
         Some(m) => Some(m.parse().map_err(PyValueError::new_err)?),
         None => None,
@@ -711,7 +820,7 @@ impl EdgeBank {
 
 #[pymethods]
 impl EdgeBank {
-    /// `x0` (B, D), `p0` (B, D, D), `q`, `r` (B, D, D) or (D, D) for every edge.
+    /// `x0` (B, D); `p0`, `q`, `r` (B, D, D), or (D, D) for every edge.
     #[new]
     fn new(
         x0: PyReadonlyArrayDyn<'_, f64>,
@@ -727,11 +836,21 @@ impl EdgeBank {
         }
         let (b, d) = (s[0], s[1]);
         let x = flat(&x0, "x0", &[b, d])?;
-        let p = flat(&p0, "P0", &[b, d, d])?;
+        let p_shared = p0.shape() == [d, d];
+        let (p_one, p_each) = ([d, d], [b, d, d]);
+        let p = flat(&p0, "P0", if p_shared { &p_one[..] } else { &p_each[..] })?;
         let (q_shared, r_shared) = (q.shape() == [d, d], r.shape() == [d, d]);
         let (one, each) = ([d, d], [b, d, d]);
         let q = flat(&q, "Q", if q_shared { &one[..] } else { &each[..] })?;
         let r = flat(&r, "R", if r_shared { &one[..] } else { &each[..] })?;
+        // What no filter can use is refused here, naming the argument (and the edge), not at
+        // the first step: P0 and Q covariances (PSD), R the measurement's (PD: the update
+        // inverts P⁻ + R, which is then PD for any PSD P⁻).
+        ca::check_covs(&p, d, p_shared, "P0", false)?;
+        // Every edge starts from its own copy of a shared P0.
+        let p = if p_shared { p.repeat(b) } else { p };
+        ca::check_covs(&q, d, q_shared, "Q", false)?;
+        ca::check_covs(&r, d, r_shared, "R", true)?;
         Ok(Self {
             b,
             d,

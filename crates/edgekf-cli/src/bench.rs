@@ -82,7 +82,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             threads: args.threads,
             ..Overrides::default()
         };
-        crate::reproduce(&["all".to_string()], &dir, &over, false)?;
+        crate::reproduce(&["all".to_string()], &dir, &over, false, false)?;
         println!(
             "reproduce all ({} figures, paper scale): {:.2} s",
             registry::ENTRIES.len(),

@@ -13,7 +13,7 @@ use edgekf::sim::Observer;
 use edgekf_claims::rule::num;
 use edgekf_claims::{Hooks, Options, Outcome, Paper, Study, Verdict};
 
-use crate::{io, positive, Progress};
+use crate::{positive, Progress};
 
 /// Arguments of `edgekf claims`.
 #[derive(Args, Debug)]
@@ -117,12 +117,12 @@ fn json(outcomes: &[Outcome]) -> Result<String> {
 }
 
 fn write_out(dir: &Path, outcomes: &[Outcome]) -> Result<()> {
-    let mut st = io::Staged::new(dir)?;
+    let mut st = crate::interrupt::stage(dir)?;
     let mut text = json(outcomes)?;
     text.push('\n');
     st.write("claims.json", text.as_bytes())?;
     st.write("claims.md", markdown(outcomes).as_bytes())?;
-    st.commit()?;
+    crate::interrupt::critical(&dir.join("claims.json"), || Ok(st.commit()?))?;
     let mut by_sim: BTreeMap<&str, Vec<Outcome>> = BTreeMap::new();
     for o in outcomes {
         by_sim
@@ -131,11 +131,11 @@ fn write_out(dir: &Path, outcomes: &[Outcome]) -> Result<()> {
             .push(o.clone());
     }
     for (sim, list) in by_sim {
-        let mut st = io::Staged::new(&dir.join(sim))?;
+        let mut st = crate::interrupt::stage(&dir.join(sim))?;
         let mut text = json(&list)?;
         text.push('\n');
         st.write("claims.json", text.as_bytes())?;
-        st.commit()?;
+        crate::interrupt::critical(&dir.join(sim).join("claims.json"), || Ok(st.commit()?))?;
     }
     Ok(())
 }

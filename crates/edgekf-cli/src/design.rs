@@ -144,6 +144,68 @@ pub struct DesignArgs {
     /// Output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
+    /// Empty the output directory first when it holds files of another study or design.
+    #[arg(long)]
+    pub force: bool,
+    /// Refuse a design estimated to take longer than this many hours (the estimate is checked
+    /// before the candidates are generated; one that needs more than 80 % of the available
+    /// memory is refused too).
+    #[arg(long, default_value_t = crate::DEFAULT_MAX_HOURS, value_parser = crate::hours)]
+    pub max_hours: f64,
+}
+
+/// Refuses a design whose estimate ([`design::cost`]) is past the memory or time limit, naming
+/// the flags that change it.
+#[allow(clippy::too_many_arguments)]
+fn check_cost(
+    what: &str,
+    n: usize,
+    dim: usize,
+    links: f64,
+    generation: design::cost::Generation,
+    method: Method,
+    max_hours: f64,
+    size_flags: &str,
+) -> anyhow::Result<()> {
+    let c = design::cost::estimate(n, dim, links, generation, method);
+    let human_b = edgekf::sim::cost::human_bytes;
+    let human_s = edgekf::sim::cost::human_seconds;
+    if let Some(avail) = crate::available_memory() {
+        if c.bytes > crate::MEMORY_SHARE * avail {
+            bail!(
+                "{what}: the design needs about {} of memory ({n} agents in {dim}-D, {links:.0} candidate links) but {} is available (the limit is 80 % of it); {size_flags}",
+                human_b(c.bytes),
+                human_b(avail)
+            );
+        }
+    }
+    if c.seconds > max_hours * 3600.0 {
+        bail!(
+            "{what}: the design would take about {} ({n} agents in {dim}-D, {links:.0} candidate links, method {method:?}); the limit is {max_hours} h (`--max-hours`, default {} h; raise it to run it anyway); {size_flags}",
+            human_s(c.seconds),
+            crate::DEFAULT_MAX_HOURS
+        );
+    }
+    if c.seconds > 60.0 {
+        eprintln!(
+            "{what}: estimated {}, {} of memory",
+            human_s(c.seconds),
+            human_b(c.bytes)
+        );
+    }
+    Ok(())
+}
+
+/// The candidate links a generator makes, and how (before it runs).
+fn generated_size(args: &DesignArgs, which: Generator) -> Option<(f64, design::cost::Generation)> {
+    use design::cost::{complete_links, Generation};
+    let (n, d) = (args.agents as f64, args.dim as f64);
+    match which {
+        Generator::Trilateration => Some((n * (d + 2.0), Generation::Nearest)),
+        Generator::Backbone => Some((n * (d + 1.0 + args.neighbours as f64), Generation::Nearest)),
+        Generator::Complete => Some((complete_links(args.agents), Generation::Complete)),
+        _ => None,
+    }
 }
 
 fn generate(args: &DesignArgs, which: Generator) -> anyhow::Result<Candidate> {
@@ -207,30 +269,43 @@ fn read_input(path: &Path) -> anyhow::Result<Candidate> {
     Ok(file.candidate())
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
-/// reader never sees a half-written file.
-fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let tmp = tmp_path(path);
-    fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))
-}
-
-/// `DIR/.NAME.tmp.EXT` (the extension kept: plotters picks the image format from it).
-fn tmp_path(path: &Path) -> PathBuf {
-    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("out");
-    let ext = path.extension().and_then(|s| s.to_str()).unwrap_or("tmp");
-    path.with_file_name(format!(".{stem}.tmp.{ext}"))
-}
-
 /// Runs `edgekf design`.
 ///
 /// # Errors
 /// Unreadable or malformed input, infeasible design (the message names the failed condition),
 /// or output that cannot be written.
 pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
+    let method: Method = args.method.into();
     let mut candidate = match (&args.input, args.generate) {
-        (Some(path), None) => read_input(path)?,
-        (None, Some(which)) => generate(args, which)?,
+        (Some(path), None) => {
+            let c = read_input(path)?;
+            check_cost(
+                &path.display().to_string(),
+                c.config.len(),
+                c.dim,
+                c.links.len() as f64,
+                design::cost::Generation::Given,
+                method,
+                args.max_hours,
+                "thin the candidate links, or use `--method yang`",
+            )?;
+            c
+        }
+        (None, Some(which)) => {
+            if let Some((links, how)) = generated_size(args, which) {
+                check_cost(
+                    &format!("--generate {}", format!("{which:?}").to_lowercase()),
+                    args.agents,
+                    args.dim,
+                    links,
+                    how,
+                    method,
+                    args.max_hours,
+                    "lower `--agents`",
+                )?;
+            }
+            generate(args, which)?
+        }
         _ => bail!("give either a framework file or --generate"),
     };
     match &args.leaders {
@@ -238,7 +313,9 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         Some(LeadersArg::None | LeadersArg::Auto) => candidate.leaders.clear(),
         None => {}
     }
-    let method: Method = args.method.into();
+    let id = edgekf_io::outdir::StudyId::new("framework", &candidate.name);
+    let prep =
+        edgekf_io::outdir::prepare(&args.out, &id, args.force, edgekf_io::outdir::Hint::CLI)?;
     println!(
         "designing {} ({} agents in {}-D, {} candidate links) with method {:?}",
         candidate.name,
@@ -308,15 +385,17 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         .verdict()
         .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;
 
-    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut st = crate::interrupt::stage(&args.out)?;
     let json = edgekf_io::to_json_pretty(&FrameworkFile::from_framework(f))?;
-    let json_path = args.out.join("framework.json");
-    write_atomic(&json_path, json.as_bytes())?;
-    let png_path = args.out.join("framework.png");
-    let tmp = tmp_path(&png_path);
+    st.write("framework.json", json.as_bytes())?;
+    let tmp = st.path("framework.png");
     plot_framework(f, &report, designed.method, &tmp)?;
-    fs::rename(&tmp, &png_path).with_context(|| format!("renaming to {}", png_path.display()))?;
-    println!("wrote {} and {}", json_path.display(), png_path.display());
+    crate::commit(st, prep, &id)?;
+    println!(
+        "wrote {} and {}",
+        args.out.join("framework.json").display(),
+        args.out.join("framework.png").display()
+    );
     Ok(())
 }
 
@@ -464,6 +543,8 @@ mod tests {
             leaders: None,
             leader_mode: LeaderModeArg::Clique,
             out,
+            force: false,
+            max_hours: crate::DEFAULT_MAX_HOURS,
         }
     }
 

@@ -166,3 +166,53 @@ pub fn read_shard(dir: &Path) -> Result<Results> {
         input_acov: Vec::new(),
     })
 }
+
+/// The scenario text with `allow_divergence` set (`[sim] allow_divergence = true` in TOML, the
+/// top-level key of a resolved scenario): what `--allow-divergence` means, applied before the
+/// scenario is checked so that it lifts the load-time stability refusal as the key does. A text
+/// that does not parse is returned as it is (its parse error is the message to show).
+pub fn allowing_divergence(text: &str) -> String {
+    let t = text.trim_start();
+    if t.starts_with('{') {
+        let Ok(mut v) = serde_json::from_str::<serde_json::Value>(t) else {
+            return text.to_string();
+        };
+        let Some(o) = v.as_object_mut() else {
+            return text.to_string();
+        };
+        o.insert("allow_divergence".into(), serde_json::Value::Bool(true));
+        serde_json::to_string(&v).unwrap_or_else(|_| text.to_string())
+    } else {
+        let Ok(mut v) = toml::from_str::<toml::Table>(text) else {
+            return text.to_string();
+        };
+        let sim = v
+            .entry("sim")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let Some(sim) = sim.as_table_mut() else {
+            return text.to_string();
+        };
+        sim.insert("allow_divergence".into(), toml::Value::Boolean(true));
+        toml::to_string(&v).unwrap_or_else(|_| text.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn allowing_divergence_sets_the_key_in_either_form() {
+        let t = allowing_divergence("name = \"x\"\n[sim]\ndt = 0.06\n");
+        let v: toml::Table = toml::from_str(&t).unwrap();
+        assert_eq!(v["sim"]["allow_divergence"].as_bool(), Some(true));
+        assert_eq!(v["sim"]["dt"].as_float(), Some(0.06));
+        let t = allowing_divergence("name = \"x\"\n");
+        let v: toml::Table = toml::from_str(&t).unwrap();
+        assert_eq!(v["sim"]["allow_divergence"].as_bool(), Some(true));
+        let t = allowing_divergence("{\"schema\": \"edgekf.scenario/1\", \"dt\": 0.1}");
+        let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+        assert_eq!(v["allow_divergence"], true);
+        assert_eq!(allowing_divergence("not [ toml"), "not [ toml");
+    }
+}

@@ -17,6 +17,7 @@
 mod bench;
 mod claims;
 mod design;
+mod interrupt;
 mod io;
 mod report;
 mod slam;
@@ -33,6 +34,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Observer, Outcome, Results};
+use edgekf_io::outdir::{self, Hint, StudyId};
 use edgekf_io::reproductions as registry;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -61,6 +63,11 @@ enum Command {
         /// partial results for `edgekf merge`.
         #[arg(long, value_parser = parse_shard)]
         shard: Option<(usize, usize)>,
+        /// Empty the output directory first when it holds files of another study (outputs never
+        /// mix: without it such a directory is refused; a re-run of the same study replaces
+        /// its files).
+        #[arg(long)]
+        force: bool,
         #[command(flatten)]
         over: Overrides,
     },
@@ -76,6 +83,9 @@ enum Command {
         /// Print the summary as JSON.
         #[arg(long)]
         json: bool,
+        /// Empty the output directory first when it holds files of another study.
+        #[arg(long)]
+        force: bool,
     },
     /// Reproduce the papers' figures (shipped scenarios).
     Reproduce {
@@ -91,6 +101,9 @@ enum Command {
         /// `index.html` (see `edgekf report`).
         #[arg(long)]
         report: bool,
+        /// Empty each simulation's directory first when it holds files of another study.
+        #[arg(long)]
+        force: bool,
         #[command(flatten)]
         over: Overrides,
     },
@@ -127,6 +140,13 @@ enum Command {
     /// paper's value, ours ± its standard error, and the verdict.
     Claims(claims::ClaimsArgs),
 }
+
+/// `--max-hours` by default: a study (or a design) estimated to take longer is refused before it
+/// starts (the CRKF at 1,000 agents, 2,000 steps: about 4.4 h).
+pub const DEFAULT_MAX_HOURS: f64 = 1.0;
+
+/// Memory a study or design may take, as a share of the available memory (`MemAvailable`).
+pub const MEMORY_SHARE: f64 = 0.8;
 
 /// Exit code when an estimator diverged (1: an error, 2: a usage error).
 const DIVERGED: u8 = 3;
@@ -189,8 +209,10 @@ pub struct Overrides {
     /// diverges (to show the divergence).
     #[arg(long)]
     pub allow_divergence: bool,
-    /// Refuse a study estimated to take longer than this many hours.
-    #[arg(long, default_value_t = 24.0, value_parser = hours)]
+    /// Refuse a study estimated to take longer than this many hours (the estimate is checked
+    /// before anything runs; a study that needs more than 80 % of the available memory is
+    /// refused too).
+    #[arg(long, default_value_t = DEFAULT_MAX_HOURS, value_parser = hours)]
     pub max_hours: f64,
     /// Print the summary as JSON (for scripts) instead of a table.
     #[arg(long)]
@@ -206,7 +228,7 @@ impl Default for Overrides {
             threads: None,
             every: None,
             allow_divergence: false,
-            max_hours: 24.0,
+            max_hours: DEFAULT_MAX_HOURS,
             json: false,
         }
     }
@@ -237,14 +259,19 @@ impl Observer for Progress {
 }
 
 fn main() -> ExitCode {
+    interrupt::install();
     let cli = Cli::parse();
-    match dispatch(cli) {
+    let code = match dispatch(cli) {
         Ok(code) => code,
         Err(e) => {
+            // An error that a Ctrl-C caused is not reported as one: the interrupt's line is.
+            interrupt::settle();
             eprintln!("edgekf: error: {e:#}");
             ExitCode::FAILURE
         }
-    }
+    };
+    interrupt::settle();
+    code
 }
 
 fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
@@ -261,6 +288,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
             scenario,
             out,
             shard,
+            force,
             over,
         } => {
             let text = fs::read_to_string(&scenario)
@@ -276,13 +304,14 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                     {
                         bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
                     }
-                    slam::run_text(&source, &text, &out, over.json)?;
-                    write_provenance(&out)?;
+                    let id = StudyId::new("slam", &slam::study_name(&source, &text)?);
+                    let prep = outdir::prepare(&out, &id, force, Hint::CLI)?;
+                    let st = slam::run_text(&source, &text, &out, over.json)?;
+                    commit(st, prep, &id)?;
                     Ok(ExitCode::SUCCESS)
                 }
                 io::Kind::Filters => {
-                    let sc = io::load_scenario(&source, &text, scenario.parent())?;
-                    let sc = apply_overrides(sc, &over).with_context(|| source.clone())?;
+                    let sc = load(&source, &text, scenario.parent(), &over)?;
                     let pool = pool(over.threads)?;
                     let range = match shard {
                         Some((i, k)) => {
@@ -298,18 +327,24 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                         None => 0..sc.runs(),
                     };
                     check_cost(&sc, range.len(), pool.current_num_threads(), &over)?;
+                    let id = if shard.is_some() {
+                        StudyId::new("shard", sc.name())
+                    } else {
+                        StudyId::study(sc.name())
+                    };
+                    let prep = outdir::prepare(&out, &id, force, Hint::CLI)?;
                     if sc.sweep().is_some() {
                         if shard.is_some() {
                             bail!("flag `--shard`: a scenario with a [sweep] is not sharded; split its `values` over several scenario files instead");
                         }
                         let sw = pool.install(|| simulate_sweep(&sc))?;
-                        let mut st = io::Staged::new(&out)?;
+                        let mut st = interrupt::stage(&out)?;
                         let extra = plot_garkf::Extra {
                             sweep: Some(&sw),
                             ..Default::default()
                         };
                         stage_outputs(&mut st, &sc, &sw.base, None, &extra)?;
-                        st.commit()?;
+                        commit(st, prep, &id)?;
                         eprintln!(
                             "wrote {} (a sweep of {} values)",
                             out.display(),
@@ -318,12 +353,12 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                         return Ok(report(&sc, &sw.base, &over));
                     }
                     let res = pool.install(|| simulate(&sc, range))?;
-                    let mut st = io::Staged::new(&out)?;
+                    let mut st = interrupt::stage(&out)?;
                     match shard {
                         Some(s) => {
                             stage_scenario(&mut st, &sc)?;
                             io::write_shard(&mut st, &res, s)?;
-                            st.commit()?;
+                            commit(st, prep, &id)?;
                             eprintln!(
                                 "wrote shard {}/{} (runs {}..{}) to {}",
                                 s.0,
@@ -336,7 +371,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                         }
                         None => {
                             stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
-                            st.commit()?;
+                            commit(st, prep, &id)?;
                             eprintln!("wrote {}", out.display());
                             Ok(report(&sc, &res, &over))
                         }
@@ -344,12 +379,18 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                 }
             }
         }
-        Command::Merge { parts, out, json } => merge(&parts, &out, json),
+        Command::Merge {
+            parts,
+            out,
+            json,
+            force,
+        } => merge(&parts, &out, json, force),
         Command::Reproduce {
             names,
             out,
             list,
             report,
+            force,
             over,
         } => {
             if list {
@@ -359,7 +400,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
                 return Ok(ExitCode::SUCCESS);
             }
             let out = out.context("flag `--out`: required without `--list`")?;
-            reproduce(&names, &out, &over, report)
+            reproduce(&names, &out, &over, report, force)
         }
         Command::Report { dir } => {
             for p in report::run(&dir)? {
@@ -403,7 +444,7 @@ fn report(sc: &Scenario, res: &Results, over: &Overrides) -> ExitCode {
         ExitCode::SUCCESS
     } else {
         eprintln!(
-            "edgekf: error: {} diverged (see status.csv); pass --allow-divergence to accept it",
+            "edgekf: error: {} diverged (see status.csv); pass --allow-divergence (or set `sim.allow_divergence = true` in the scenario) to accept it",
             diverged.join(", ")
         );
         ExitCode::from(DIVERGED)
@@ -411,7 +452,7 @@ fn report(sc: &Scenario, res: &Results, over: &Overrides) -> ExitCode {
 }
 
 /// Available memory from `/proc/meminfo` (Linux), in bytes.
-fn available_memory() -> Option<f64> {
+pub fn available_memory() -> Option<f64> {
     let text = fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -423,9 +464,9 @@ fn available_memory() -> Option<f64> {
 fn check_cost(sc: &Scenario, runs: usize, threads: usize, over: &Overrides) -> Result<()> {
     let c = sim::cost(sc, runs, threads);
     if let Some(avail) = available_memory() {
-        if c.bytes > 0.8 * avail {
+        if c.bytes > MEMORY_SHARE * avail {
             bail!(
-                "{}: this study needs about {} of memory ({} runs, {} reported steps of {} estimators) but {} is available; lower `runs`, raise `every`, or shard it (`--shard I/K`)",
+                "{}: this study needs about {} of memory ({} runs, {} reported steps of {} estimators) but {} is available (the limit is 80 % of it); lower `runs` (`--runs`), raise `every` (`--every`), or shard it (`--shard I/K`)",
                 sc.name(),
                 sim::cost::human_bytes(c.bytes),
                 runs,
@@ -437,7 +478,7 @@ fn check_cost(sc: &Scenario, runs: usize, threads: usize, over: &Overrides) -> R
     }
     if c.seconds > over.max_hours * 3600.0 {
         bail!(
-            "{}: this study would take about {} on {threads} thread(s) ({} of it in computations shared by all runs, such as a centralised covariance); the limit is {} h (`--max-hours`). Lower `steps`, `runs` or the network size, drop the costliest estimator, or shard it",
+            "{}: this study would take about {} on {threads} thread(s) ({} of it in computations shared by all runs, such as a centralised covariance); the limit is {} h (`--max-hours`, default {DEFAULT_MAX_HOURS} h; raise it to run it anyway). Lower `steps`, `runs` or the network size, drop the costliest estimator, or shard it",
             sc.name(),
             sim::cost::human_seconds(c.seconds),
             sim::cost::human_seconds(c.shared_seconds),
@@ -465,12 +506,19 @@ fn fit_ar(
     let text =
         fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let source = path.display().to_string();
-    let sc = io::load_scenario(&source, &text, path.parent())?;
-    let sc = apply_overrides(sc, over).with_context(|| source.clone())?;
+    let sc = load(&source, &text, path.parent(), over)?;
+    // The fit needs the window's first step plus `order` lags inside the run.
+    if order >= sc.steps() {
+        bail!(
+            "flag `--order`: must lie in 1..={} for {} steps (the fitting window needs at least one step after the {order} lags)",
+            sc.steps().saturating_sub(1).max(1),
+            sc.steps()
+        );
+    }
     if from + order > sc.steps() {
         bail!(
             "flag `--from`: must lie in 1..={} for {} steps and order {order}",
-            sc.steps().saturating_sub(order),
+            sc.steps() - order,
             sc.steps()
         );
     }
@@ -553,6 +601,35 @@ fn fit_ar(
     Ok(())
 }
 
+/// Loads a filter scenario and applies the overrides. `--allow-divergence` sets the scenario's
+/// `allow_divergence` before it is checked, so it lifts the load-time stability refusal exactly
+/// as the key does; without it, a refusal that the key would lift names the flag too.
+fn load(source: &str, text: &str, base: Option<&Path>, over: &Overrides) -> Result<Scenario> {
+    load_with(source, text, over, &|t| Ok(io::load_scenario(source, t, base)?))
+}
+
+/// [`load`] with the scenario text parsed and checked by `parse`.
+fn load_with(
+    source: &str,
+    text: &str,
+    over: &Overrides,
+    parse: &dyn Fn(&str) -> Result<Scenario>,
+) -> Result<Scenario> {
+    let sc = if over.allow_divergence {
+        parse(&io::allowing_divergence(text))?
+    } else {
+        parse(text).map_err(|e| {
+            let msg = format!("{e:#}");
+            if msg.contains("allow_divergence") {
+                anyhow::anyhow!("{msg} (on the command line: --allow-divergence)")
+            } else {
+                e
+            }
+        })?
+    };
+    apply_overrides(sc, over).with_context(|| source.to_string())
+}
+
 fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
     if over.allow_divergence {
         sc = sc.with_allow_divergence(true)?;
@@ -578,13 +655,20 @@ pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results>
     Ok(res?)
 }
 
-/// `DIR/provenance.json` for a SLAM study (a filter study stages it with its outputs).
-fn write_provenance(dir: &Path) -> Result<()> {
-    let path = dir.join("provenance.json");
-    let tmp = dir.join(format!(".provenance.json.{}.tmp", std::process::id()));
-    fs::write(&tmp, report::Provenance::of_process().to_json())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
-    fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))
+/// Stages `provenance.json` (this process's command line, the study, and the list of files
+/// staged), moves every staged file into place, and removes what the previous run of the same
+/// study left that this one did not write again — as one step that Ctrl-C does not cut.
+fn commit(mut st: io::Staged, prep: outdir::Prepared, id: &StudyId) -> Result<()> {
+    let mut names = st.names();
+    let prov = outdir::provenance_json(std::env::args().collect(), id, &names);
+    st.write("provenance.json", prov.as_bytes())?;
+    names.push("provenance.json".into());
+    let dir = prep.dir().to_path_buf();
+    interrupt::critical(&dir, || {
+        st.commit()?;
+        prep.finish(&names)?;
+        Ok(())
+    })
 }
 
 /// Runs a sweep ([`sim::sweep`]) with a progress bar.
@@ -601,7 +685,7 @@ fn stage_scenario(st: &mut io::Staged, sc: &Scenario) -> Result<()> {
 }
 
 /// Stages scenario.json, metrics.csv, paths.csv, status.csv, a sweep's summary.csv and
-/// sweep_metrics.csv, and the figures (all, or `plots`).
+/// sweep_metrics.csv, and the figures (all, or `plots`); [`commit`] adds provenance.json.
 fn stage_outputs(
     st: &mut io::Staged,
     sc: &Scenario,
@@ -617,15 +701,10 @@ fn stage_outputs(
         )?;
     }
     edgekf_io::stage_tables(st, sc, res)?;
-    st.write(
-        "provenance.json",
-        report::Provenance::of_process().to_json().as_bytes(),
-    )?;
-    figure::render_study(|file| st.path(file), sc, res, plots, extra)?;
-    Ok(())
+    Ok(figure::render_study(|file| st.path(file), sc, res, plots, extra)?)
 }
 
-fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {
+fn merge(parts: &[PathBuf], out: &Path, json: bool, force: bool) -> Result<ExitCode> {
     let mut scenario_text: Option<String> = None;
     let mut results = Vec::new();
     for dir in parts {
@@ -654,9 +733,11 @@ fn merge(parts: &[PathBuf], out: &Path, json: bool) -> Result<ExitCode> {
             sc.runs()
         );
     }
-    let mut st = io::Staged::new(out)?;
+    let id = StudyId::study(sc.name());
+    let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
+    let mut st = interrupt::stage(out)?;
     stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
-    st.commit()?;
+    commit(st, prep, &id)?;
     eprintln!("merged {} shard(s) into {}", parts.len(), out.display());
     let over = Overrides {
         json,
@@ -670,7 +751,13 @@ fn sim_dir(file: &str) -> &str {
     file.strip_suffix(".toml").unwrap_or(file)
 }
 
-fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Result<ExitCode> {
+fn reproduce(
+    names: &[String],
+    out: &Path,
+    over: &Overrides,
+    html: bool,
+    force: bool,
+) -> Result<ExitCode> {
     if names.is_empty() {
         bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
     }
@@ -698,17 +785,37 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Resu
             if files.iter().any(|(f, _)| *f == file) {
                 continue;
             }
-            let sc = io::load_scenario_with(file, text, &registry::embedded_framework)?;
-            let sc = apply_overrides(sc, over).with_context(|| file.to_string())?;
+            let sc = load_with(file, text, over, &|t| {
+                Ok(io::load_scenario_with(file, t, &registry::embedded_framework)?)
+            })?;
             check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
             files.push((file, sc));
         }
+    }
+    // Every output directory is checked before anything runs: a reproduce root holds one
+    // directory per simulation, and each holds its own study only.
+    outdir::prepare_root(out, force, Hint::CLI)?;
+    let mut prepared: Vec<Option<outdir::Prepared>> = Vec::new();
+    for (file, sc) in &files {
+        let id = StudyId::study(sc.name());
+        prepared.push(Some(outdir::prepare(
+            &out.join(sim_dir(file)),
+            &id,
+            force,
+            Hint::CLI,
+        )?));
+    }
+    let mut slam_prepared: Vec<(StudyId, Option<outdir::Prepared>)> = Vec::new();
+    for e in &slams {
+        let id = StudyId::new("slam", &slam::study_name(e.file, e.text)?);
+        let p = outdir::prepare(&out.join(e.name), &id, force, Hint::CLI)?;
+        slam_prepared.push((id, Some(p)));
     }
     let start = Instant::now();
     let mut code = ExitCode::SUCCESS;
     let mut pages: Vec<PathBuf> = Vec::new();
     let mut done: Vec<(&str, Option<sim::sweep::SweepResults>)> = Vec::new();
-    for (file, sc) in &files {
+    for (k, (file, sc)) in files.iter().enumerate() {
         let t = Instant::now();
         let (res, sweep) = if sc.sweep().is_some() {
             let sw = pool.install(|| simulate_sweep(sc))?;
@@ -740,9 +847,12 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Resu
                 }
             }
         }
-        let mut st = io::Staged::new(&dir)?;
+        let mut st = interrupt::stage(&dir)?;
         stage_outputs(&mut st, sc, &res, Some(&plots), &extra)?;
-        st.commit()?;
+        let prep = prepared[k]
+            .take()
+            .context("each simulation is prepared once")?;
+        commit(st, prep, &StudyId::study(sc.name()))?;
         for e in &mine {
             eprintln!(
                 "{:<16} {}",
@@ -768,21 +878,27 @@ fn reproduce(names: &[String], out: &Path, over: &Overrides, html: bool) -> Resu
             code = ExitCode::from(DIVERGED);
         }
         if html {
-            pages.push(report::write_page(&dir)?);
+            pages.push(interrupt::critical(&dir.join("report.html"), || {
+                report::write_page(&dir)
+            })?);
         }
         done.push((file, sweep));
     }
-    for e in &slams {
+    for (e, (id, prep)) in slams.iter().zip(slam_prepared.iter_mut()) {
         let dir = out.join(e.name);
-        slam::run_text(e.file, e.text, &dir, over.json)?;
-        write_provenance(&dir)?;
+        let st = slam::run_text(e.file, e.text, &dir, over.json)?;
+        let prep = prep.take().context("each SLAM study is prepared once")?;
+        commit(st, prep, id)?;
         eprintln!("{:<16} {}", e.name, dir.display());
         if html {
-            pages.push(report::write_page(&dir)?);
+            pages.push(interrupt::critical(&dir.join("report.html"), || {
+                report::write_page(&dir)
+            })?);
         }
     }
     if html {
-        let index = report::write_index(out, &pages)?;
+        let index =
+            interrupt::critical(&out.join("index.html"), || report::write_index(out, &pages))?;
         for p in pages.iter().chain(std::iter::once(&index)) {
             eprintln!("wrote {}", p.display());
         }

@@ -771,9 +771,28 @@ pub fn is_study(dir: &Path) -> bool {
         && (dir.join("metrics.csv").is_file() || dir.join("team.csv").is_file())
 }
 
+/// The files of the study in `dir`: those its `provenance.json` lists, and the files derived
+/// from them later (`report.html`, `claims.json`); `None` when no provenance lists them (an
+/// older edgekf), then every file is taken.
+fn study_files(dir: &Path) -> Option<Vec<String>> {
+    let p = edgekf_io::outdir::provenance(dir)?;
+    if p.files.is_empty() {
+        return None;
+    }
+    let mut v = p.files;
+    v.extend(edgekf_io::outdir::DERIVED.iter().map(|s| s.to_string()));
+    Some(v)
+}
+
+/// Whether `file` in `dir` is one of the study's files (see [`study_files`]) and exists.
+fn of_study(dir: &Path, listed: Option<&[String]>, file: &str) -> bool {
+    listed.is_none_or(|l| l.iter().any(|f| f == file)) && dir.join(file).is_file()
+}
+
 /// The reproduction names whose figures this simulation draws (by its scenario name and the
 /// figures present), with their descriptions and figure stems.
 fn reproductions_of(dir: &Path, name: &str) -> Vec<&'static registry::Entry> {
+    let listed = study_files(dir);
     let sim = dir.file_name().and_then(|s| s.to_str()).unwrap_or("");
     registry::ENTRIES
         .iter()
@@ -784,7 +803,7 @@ fn reproductions_of(dir: &Path, name: &str) -> Vec<&'static registry::Entry> {
                 (e.simulation() == name || e.simulation() == sim)
                     && e.plots
                         .iter()
-                        .all(|p| dir.join(format!("{p}.png")).is_file())
+                        .all(|p| of_study(dir, listed.as_deref(), &format!("{p}.png")))
             }
         })
         .collect()
@@ -816,16 +835,19 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     };
     let name = sc.get("name").and_then(Value::as_str).unwrap_or("study");
     let reps = reproductions_of(dir, name);
+    // Only the files the study wrote: a directory may hold others (written by hand, or by an
+    // older edgekf into a reused directory); they are not this study's.
+    let listed = study_files(dir);
     let mut o = String::new();
     page_start(&format!("edgekf — {name}"), &mut o);
     page_header(&mut o, name, sc, &reps);
-    figures_section(&mut o, dir, &reps, slam)?;
+    figures_section(&mut o, dir, &reps, slam, listed.as_deref())?;
     summary_section(&mut o, dir, sc, slam)?;
     let claims = read_claims(dir)?;
     o.push_str(&claims_section(claims.as_deref(), "claims"));
     scenario_section(&mut o, sc, slam);
     provenance_section(&mut o, dir, sc);
-    files_section(&mut o, dir)?;
+    files_section(&mut o, dir, listed.as_deref())?;
     page_end(&mut o);
     let out = dir.join("report.html");
     write_atomic(&out, o.as_bytes())?;
@@ -859,6 +881,7 @@ fn figures_section(
     dir: &Path,
     reps: &[&registry::Entry],
     slam: bool,
+    listed: Option<&[String]>,
 ) -> Result<()> {
     o.push_str("<h2 id=\"figures\">Figures</h2>\n");
     let mut drawn: Vec<String> = Vec::new();
@@ -876,7 +899,7 @@ fn figures_section(
             e.plots.iter().map(|p| format!("{p}.png")).collect()
         };
         for f in files {
-            if dir.join(&f).is_file() {
+            if of_study(dir, listed, &f) {
                 o.push_str(&img(dir, &f, &format!("{} ({f})", e.name))?);
                 drawn.push(f);
             }
@@ -888,6 +911,7 @@ fn figures_section(
         .filter_map(|d| d.ok())
         .filter_map(|d| d.file_name().into_string().ok())
         .filter(|f| f.ends_with(".png") && !f.starts_with('.') && !drawn.contains(f))
+        .filter(|f| of_study(dir, listed, f))
         .collect();
     others.sort();
     if !others.is_empty() && !reps.is_empty() {
@@ -995,9 +1019,13 @@ fn provenance_section(o: &mut String, dir: &Path, sc: &Value) {
     );
 }
 
-/// The files beside the page, with their sizes.
-fn files_section(o: &mut String, dir: &Path) -> Result<()> {
-    o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n<ul>\n");
+/// The files beside the page, with their sizes (only the study's own when provenance lists them).
+fn files_section(o: &mut String, dir: &Path, listed: Option<&[String]>) -> Result<()> {
+    o.push_str("<h2 id=\"files\">Files</h2>\n<p class=\"note\">Beside this page (formats: docs/formats.md in the repository).</p>\n");
+    if listed.is_none() {
+        o.push_str("<p class=\"note\">provenance.json does not list the study's files (written by an older edgekf): every file of the directory is shown, and some may be of another study.</p>\n");
+    }
+    o.push_str("<ul>\n");
     let mut files: Vec<(String, u64)> = fs::read_dir(dir)?
         .filter_map(|d| d.ok())
         .filter_map(|d| {
@@ -1005,6 +1033,7 @@ fn files_section(o: &mut String, dir: &Path) -> Result<()> {
             let len = d.metadata().ok()?.len();
             (!n.starts_with('.') && n != "report.html" && d.path().is_file()).then_some((n, len))
         })
+        .filter(|(n, _)| listed.is_none_or(|l| l.contains(n)))
         .collect();
     files.sort();
     for (f, len) in &files {
@@ -1131,8 +1160,9 @@ pub fn write_index(root: &Path, pages: &[PathBuf]) -> Result<PathBuf> {
 /// # Errors
 /// When `DIR` holds neither a study nor study subdirectories, or a page cannot be written.
 pub fn run(dir: &Path) -> Result<Vec<PathBuf>> {
+    let page = |d: &Path| crate::interrupt::critical(&d.join("report.html"), || write_page(d));
     if is_study(dir) {
-        return Ok(vec![write_page(dir)?]);
+        return Ok(vec![page(dir)?]);
     }
     let mut subs: Vec<PathBuf> = fs::read_dir(dir)
         .with_context(|| format!("cannot read {}", dir.display()))?
@@ -1149,9 +1179,9 @@ pub fn run(dir: &Path) -> Result<Vec<PathBuf>> {
     }
     let mut pages = Vec::new();
     for s in &subs {
-        pages.push(write_page(s)?);
+        pages.push(page(s)?);
     }
-    let index = write_index(dir, &pages)?;
+    let index = crate::interrupt::critical(&dir.join("index.html"), || write_index(dir, &pages))?;
     pages.push(index);
     Ok(pages)
 }

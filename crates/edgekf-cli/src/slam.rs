@@ -9,30 +9,43 @@ use anyhow::{anyhow, bail, Context, Result};
 use edgekf_slam::observer::printed_care;
 use edgekf_slam::{simulate, Scenario, ScenarioSpec, Trajectory, KIND, SCHEMA};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+/// The `name` of a SLAM scenario (what its output directory is recognised by).
+///
+/// # Errors
+/// A text that does not parse, with the message of [`run_text`].
+pub fn study_name(source: &str, text: &str) -> Result<String> {
+    Ok(parse(source, text)?.name)
+}
 
 /// Runs a SLAM scenario given as TOML (`kind = "slam"`) or as a resolved `scenario.json`
-/// (`"schema": "edgekf.slam/1"`, detected by a leading `{`), writing every output into `out`.
+/// (`"schema": "edgekf.slam/1"`, detected by a leading `{`), and stages every output for `out`;
+/// the caller commits them, with `provenance.json`.
 ///
-/// `source` names the input in error messages. Each output is written to a temporary file in `out` and renamed
-/// into place, so an error never leaves a half-written file under an output name.
+/// `source` names the input in error messages. Nothing is created before the scenario is valid
+/// and simulated; each output is staged under a temporary name and moved into place only when
+/// all of them are written, so an error leaves nothing under an output name.
 ///
 /// The design checks go to stderr (a log); the final summary to stdout, as JSON with `json`.
-pub fn run_text(source: &str, text: &str, out: &Path, json: bool) -> Result<()> {
+pub fn run_text(source: &str, text: &str, out: &Path, json: bool) -> Result<edgekf_io::Staged> {
     let spec = parse(source, text)?;
     let sc = spec.validate().map_err(|e| anyhow!("{source}: {e}"))?;
     eprint!("{}", design_report(source, &sc));
     let started = std::time::Instant::now();
     let traj = simulate(&sc);
     let elapsed = started.elapsed();
-    std::fs::create_dir_all(out)
-        .with_context(|| format!("cannot create output directory {}", out.display()))?;
     let resolved = resolved_json(&sc)?;
-    write_atomic(out, "scenario.json", resolved.as_bytes())?;
-    write_atomic(out, "robots.csv", robots_csv(&sc, &traj).as_bytes())?;
-    write_atomic(out, "team.csv", team_csv(&sc, &traj).as_bytes())?;
-    plot_atomic(out, "paths.png", |p| slam_plot::paths(p, &sc, &traj))?;
-    plot_atomic(out, "errors.png", |p| slam_plot::errors(p, &sc, &traj))?;
+    let mut st = crate::interrupt::stage(out)?;
+    st.write("scenario.json", resolved.as_bytes())?;
+    st.write("robots.csv", robots_csv(&sc, &traj).as_bytes())?;
+    st.write("team.csv", team_csv(&sc, &traj).as_bytes())?;
+    plot_staged(&mut st, out, "paths.png", |p| {
+        slam_plot::paths(p, &sc, &traj)
+    })?;
+    plot_staged(&mut st, out, "errors.png", |p| {
+        slam_plot::errors(p, &sc, &traj)
+    })?;
     if json {
         println!("{}", summary_json(&sc, &traj));
     } else {
@@ -42,7 +55,7 @@ pub fn run_text(source: &str, text: &str, out: &Path, json: bool) -> Result<()> 
         "wrote {}/{{scenario.json, robots.csv, team.csv, paths.png, errors.png}}",
         out.display()
     );
-    Ok(())
+    Ok(st)
 }
 
 /// The final errors as JSON (for scripts).
@@ -101,28 +114,15 @@ fn resolved_json(sc: &Scenario) -> Result<String> {
     Ok(json)
 }
 
-fn tmp_path(out: &Path, name: &str) -> PathBuf {
-    out.join(format!(".{name}.{}.tmp", std::process::id()))
-}
-
-fn write_atomic(out: &Path, name: &str, bytes: &[u8]) -> Result<()> {
-    let tmp = tmp_path(out, name);
-    let dest = out.join(name);
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, &dest)
-        .with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()))
-}
-
-fn plot_atomic(out: &Path, name: &str, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    // The bitmap backend picks the encoder from the extension, so the temporary name ends in `.png`.
-    let tmp = out.join(format!(".{name}.{}.tmp.png", std::process::id()));
-    let dest = out.join(name);
-    if let Err(e) = draw(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.context(format!("cannot draw {}", dest.display())));
-    }
-    std::fs::rename(&tmp, &dest)
-        .with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()))
+fn plot_staged(
+    st: &mut edgekf_io::Staged,
+    out: &Path,
+    name: &str,
+    draw: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
+    // The staged name keeps the `.png` extension: the bitmap backend picks the encoder from it.
+    let tmp = st.path(name);
+    draw(&tmp).with_context(|| format!("cannot draw {}", out.join(name).display()))
 }
 
 fn norm2(a: f64, b: f64) -> f64 {
@@ -329,10 +329,15 @@ mod tests {
 
     const FIG3: &str = include_str!("../../../scenarios/slam-fig3.toml");
 
-    fn temp_dir(tag: &str) -> PathBuf {
+    fn temp_dir(tag: &str) -> std::path::PathBuf {
         let d = std::env::temp_dir().join(format!("edgekf-slam-{tag}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         d
+    }
+
+    /// `run_text` into `out`, committed.
+    fn run_into(source: &str, text: &str, out: &Path) -> Result<()> {
+        Ok(run_text(source, text, out, false)?.commit()?)
     }
 
     /// A 1 s horizon keeps the test fast; exactness of the round trip does not depend on the horizon.
@@ -343,9 +348,9 @@ mod tests {
     #[test]
     fn json_round_trip_reproduces_the_csvs_exactly() {
         let (a, b) = (temp_dir("a"), temp_dir("b"));
-        run_text("short.toml", &short(), &a, false).unwrap();
+        run_into("short.toml", &short(), &a).unwrap();
         let json = std::fs::read_to_string(a.join("scenario.json")).unwrap();
-        run_text("scenario.json", &json, &b, false).unwrap();
+        run_into("scenario.json", &json, &b).unwrap();
         for f in ["scenario.json", "robots.csv", "team.csv"] {
             assert_eq!(
                 std::fs::read(a.join(f)).unwrap(),
@@ -369,22 +374,15 @@ mod tests {
     #[test]
     fn errors_name_the_file_the_key_and_the_condition() {
         let out = temp_dir("err");
-        let e = run_text(
-            "bad.toml",
-            &short().replace("kind = \"slam\"\n", ""),
-            &out,
-            false,
-        )
-        .unwrap_err();
+        let e = run_into("bad.toml", &short().replace("kind = \"slam\"\n", ""), &out).unwrap_err();
         assert!(
             e.to_string().starts_with("bad.toml: key `kind` is missing"),
             "{e}"
         );
-        let e = run_text(
+        let e = run_into(
             "bad.toml",
             &short().replace("k1 = 1.0", "k1 = 1.0\nk9 = 1.0"),
             &out,
-            false,
         )
         .unwrap_err();
         assert!(
@@ -395,12 +393,12 @@ mod tests {
             "measurement = [[1.0, -1.0, 0.0]",
             "measurement = [[1.0, -2.0, 0.0]",
         );
-        let e = run_text("bad.toml", &bad, &out, false).unwrap_err();
+        let e = run_into("bad.toml", &bad, &out).unwrap_err();
         assert_eq!(
             e.to_string(),
             "bad.toml: key `graphs.measurement` is not a graph Laplacian: row 0 sums to -1, not 0"
         );
-        let e = run_text("s.json", "{\"name\": \"x\"}", &out, false).unwrap_err();
+        let e = run_into("s.json", "{\"name\": \"x\"}", &out).unwrap_err();
         assert!(e.to_string().starts_with("s.json: "), "{e}");
         // Nothing was written for the failed runs.
         assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());

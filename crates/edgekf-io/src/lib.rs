@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod framework;
+pub mod outdir;
 pub mod reproductions;
 
 use std::fmt::Write as _;
@@ -298,11 +299,19 @@ pub fn load_framework_file(path: &Path) -> Result<FrameworkSpec, FrameworkError>
     })
 }
 
-/// Files staged under temporary names in a directory and moved into place together once every
-/// one of them has been written; on drop, whatever was not committed is removed.
+/// Files staged in a hidden subdirectory of a directory ([`staging_dir`]) and moved into place
+/// together once every one of them has been written; on drop, whatever was not committed is
+/// removed with the subdirectory. (Once the subdirectory is gone no staged file can appear:
+/// `edgekf`'s Ctrl-C removes it while a figure may still be being encoded.)
 pub struct Staged {
     dir: PathBuf,
+    stage: PathBuf,
     files: Vec<(PathBuf, PathBuf)>,
+}
+
+/// The hidden subdirectory of `dir` where this process stages its files.
+pub fn staging_dir(dir: &Path) -> PathBuf {
+    dir.join(format!(".edgekf-staging-{}", std::process::id()))
 }
 
 impl Staged {
@@ -311,23 +320,22 @@ impl Staged {
     /// # Errors
     /// [`OutputError::CreateDir`] when the directory cannot be created.
     pub fn new(dir: &Path) -> Result<Self, OutputError> {
-        fs::create_dir_all(dir).map_err(|source| OutputError::CreateDir {
+        let stage = staging_dir(dir);
+        fs::create_dir_all(&stage).map_err(|source| OutputError::CreateDir {
             path: dir.to_path_buf(),
             source,
         })?;
         Ok(Self {
             dir: dir.to_path_buf(),
+            stage,
             files: Vec::new(),
         })
     }
 
-    /// The temporary path for `name` (for writers that need a path, such as the plots).
+    /// The temporary path for `name` (for writers that need a path, such as the plots; the
+    /// extension is kept: image encoders pick the format from it).
     pub fn path(&mut self, name: &str) -> PathBuf {
-        // Keep the extension last: image encoders pick the format from it.
-        let tmp = match name.rsplit_once('.') {
-            Some((stem, ext)) => self.dir.join(format!(".{stem}.tmp.{ext}")),
-            None => self.dir.join(format!(".{name}.tmp")),
-        };
+        let tmp = self.stage.join(name);
         self.files.push((tmp.clone(), self.dir.join(name)));
         tmp
     }
@@ -339,6 +347,14 @@ impl Staged {
     pub fn write(&mut self, name: &str, bytes: &[u8]) -> Result<(), OutputError> {
         let tmp = self.path(name);
         fs::write(&tmp, bytes).map_err(|source| OutputError::Write { path: tmp, source })
+    }
+
+    /// The names of the files staged so far (for the provenance's list of files).
+    pub fn names(&self) -> Vec<String> {
+        self.files
+            .iter()
+            .filter_map(|(_, dest)| dest.file_name()?.to_str().map(String::from))
+            .collect()
     }
 
     /// Moves every staged file into place.
@@ -358,6 +374,7 @@ impl Drop for Staged {
         for (tmp, _) in &self.files {
             let _ = fs::remove_file(tmp);
         }
+        let _ = fs::remove_dir(&self.stage);
     }
 }
 
@@ -387,6 +404,17 @@ pub struct Provenance {
     pub commit: String,
     /// The command line, one argument per entry.
     pub command: Vec<String>,
+    /// What the directory holds ([`outdir::StudyId`]): `study`, `shard`, `slam` or `framework`
+    /// (empty: not recorded).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub kind: String,
+    /// The study's (scenario's or framework's) `name` (empty: not recorded).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// Every file written into the directory with this provenance, itself included, sorted
+    /// (empty: not recorded, by an older edgekf). `edgekf report` shows only these.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
 }
 
 impl Provenance {
@@ -398,6 +426,9 @@ impl Provenance {
             version: env!("CARGO_PKG_VERSION").into(),
             commit: GIT_COMMIT.into(),
             command,
+            kind: String::new(),
+            name: String::new(),
+            files: Vec::new(),
         }
     }
     /// This process, with its command line.

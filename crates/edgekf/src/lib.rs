@@ -91,6 +91,8 @@
 #![warn(missing_docs)]
 // Index loops mirror the equations (agents, edges, dimensions) more clearly than iterator chains.
 #![allow(clippy::needless_range_loop)]
+// `k % n == 0` rather than `is_multiple_of` (Rust 1.87): the workspace's MSRV is 1.80.
+#![allow(clippy::manual_is_multiple_of)]
 
 pub mod agent;
 pub mod control;

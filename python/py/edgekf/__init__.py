@@ -21,11 +21,13 @@ from __future__ import annotations
 import csv
 import io
 import json
+import operator
 import os
 import sys
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _edgekf
 
@@ -45,12 +47,49 @@ __version__: str = _edgekf.__version__
 
 ScenarioLike = Union[str, "os.PathLike[str]", Dict[str, Any]]
 
+_U64_MAX = 2**64 - 1
+
+
+def _count(name: str, value: Any, minimum: int = 1, maximum: int = _U64_MAX) -> Optional[int]:
+    """A whole-number argument (``int`` or a NumPy integer), checked against its range; the
+    error names the parameter (``None`` passes through)."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected a whole number, got {value!r}")
+    try:
+        v = operator.index(value)
+    except TypeError:
+        raise TypeError(
+            f"{name}: expected a whole number, got {type(value).__name__} {value!r}"
+        ) from None
+    if not minimum <= v <= maximum:
+        bound = "2^64 - 1" if maximum == _U64_MAX else str(maximum)
+        raise ValueError(f"{name}: must be a whole number in {minimum}..={bound}, got {v}")
+    return v
+
+
+def _json_default(o: Any) -> Any:
+    """NumPy scalars and arrays where a scenario takes Python numbers and lists."""
+    if isinstance(o, np.bool_):
+        return bool(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"Object of type {type(o).__name__} is not a scenario value")
+
 
 def _source(scenario: ScenarioLike) -> Tuple[str, str, Optional[str], bool]:
-    """(source, text, base directory, is_dict) of a path or a dict."""
+    """(source, text, base directory, is_dict) of a path or a dict.
+
+    A missing file raises ``FileNotFoundError`` (an unreadable one its ``OSError``), naming it.
+    """
     if isinstance(scenario, dict):
         try:
-            text = json.dumps(scenario, allow_nan=False)
+            text = json.dumps(scenario, allow_nan=False, default=_json_default)
         except (TypeError, ValueError) as e:
             raise ValueError(f"<dict>: cannot be read as a scenario: {e}") from None
         return "<dict>", text, os.getcwd(), True
@@ -60,7 +99,7 @@ def _source(scenario: ScenarioLike) -> Tuple[str, str, Optional[str], bool]:
             with open(path, encoding="utf-8") as f:
                 text = f.read()
         except OSError as e:
-            raise ValueError(f"cannot read {path}: {e.strerror or e}") from None
+            raise type(e)(e.errno, f"cannot read {path}: {e.strerror or e}", path) from None
         base = os.path.dirname(path) or None
         return path, text, base, False
     raise TypeError(
@@ -188,7 +227,9 @@ class Result:
             return pd.DataFrame(columns=["estimator", "step", "time", "metric", "mean", "std"])
         return pd.concat(frames, ignore_index=True)
 
-    def save(self, dir: Union[str, "os.PathLike[str]"], *, figures: bool = True) -> None:
+    def save(
+        self, dir: Union[str, "os.PathLike[str]"], *, figures: bool = True, force: bool = False
+    ) -> None:
         """Writes the CLI's files into ``dir`` (created if missing), atomically.
 
         ``scenario.json``, ``metrics.csv`` (byte-identical to ``edgekf run``'s), ``paths.csv``,
@@ -197,13 +238,19 @@ class Result:
         and git commit, and the Python call that made the result) and, unless ``figures`` is
         false, the scenario's figures as PNG — through the CLI's own writers and plotting code.
         ``edgekf report DIR`` then makes the HTML page of the directory.
+
+        Outputs never mix: ``dir`` must be new, empty, or hold this same study (the same
+        scenario ``name``, as its ``provenance.json`` records; the files this save does not
+        write again are removed). A folder that holds another study or files edgekf did not
+        write raises ``FileExistsError`` naming them, unless ``force`` (which empties it
+        first). An unwritable folder raises ``OSError`` (``PermissionError``, …).
         """
         d = os.fspath(dir)
         if self._call is not None:
             command = [sys.executable, "-c", f"import edgekf; {self._call}.save({d!r})"]
         else:
             command = [sys.executable] + list(sys.argv)
-        self._r.save(d, command, figures)
+        self._r.save(d, command, figures, bool(force))
 
     @property
     def sweep_parameter(self) -> Optional[str]:
@@ -242,6 +289,7 @@ def run(
     threads: Optional[int] = None,
     every: Optional[int] = None,
     progress: bool = False,
+    max_hours: float = 1.0,
 ) -> Result:
     """Runs the Monte Carlo study of a scenario, as ``edgekf run`` does.
 
@@ -256,14 +304,30 @@ def run(
         Worker threads (default: one per core), the CLI's ``--threads``.
     progress
         Print the progress to stderr.
+    max_hours
+        Refuse a study estimated to take longer (the CLI's ``--max-hours``, default 1 h);
+        one that needs more than 80 % of the available memory is refused too. Both are
+        checked before the run starts.
 
     The GIL is released during the run; Ctrl-C (``KeyboardInterrupt``) stops it cleanly.
 
     Raises
     ------
     ValueError
-        Bad input, with the CLI's message (file, key, problem).
+        Bad input, with the CLI's message (file, key, problem); a count or seed out of range,
+        naming the parameter.
+    TypeError
+        A count or seed that is not a whole number (``int`` or a NumPy integer).
+    FileNotFoundError
+        A missing scenario or framework file (``OSError`` for other unreadable files).
     """
+    runs, steps, every, threads = (
+        _count("runs", runs),
+        _count("steps", steps),
+        _count("every", every),
+        _count("threads", threads),
+    )
+    seed = _count("seed", seed, minimum=0)
     source, text, base, is_dict = _source(scenario)
     return Result(
         _edgekf.run_text(
@@ -277,6 +341,7 @@ def run(
             seed=seed,
             threads=threads,
             progress=progress,
+            max_hours=float(max_hours),
         ),
         None
         if is_dict
@@ -304,21 +369,26 @@ def list_reproductions() -> List[Dict[str, Any]]:
     ]
 
 
-_OVERRIDES = ("runs", "steps", "seed", "every", "threads", "progress")
+_OVERRIDES = ("runs", "steps", "seed", "every", "threads", "progress", "max_hours")
 
 
 def reproduce(name: str, **overrides: Any) -> Result:
     """Runs the simulation behind a figure of the papers (``edgekf reproduce NAME``).
 
-    ``overrides``: ``runs``, ``steps``, ``seed``, ``every``, ``threads``, ``progress``, as for
-    :func:`run`. SLAM studies run with the CLI only.
+    ``overrides``: ``runs``, ``steps``, ``seed``, ``every``, ``threads``, ``progress``,
+    ``max_hours``, as for :func:`run`. SLAM studies run with the CLI only.
     """
     bad = sorted(set(overrides) - set(_OVERRIDES))
     if bad:
         raise ValueError(
             f"reproduce: unknown override(s) {', '.join(bad)}; allowed: {', '.join(_OVERRIDES)}"
         )
-    kw = {k: v for k, v in overrides.items() if k not in ("threads", "progress")}
+    for k in ("runs", "steps", "every", "threads", "seed"):
+        if k in overrides:
+            overrides[k] = _count(k, overrides[k], minimum=0 if k == "seed" else 1)
+    if "max_hours" in overrides:
+        overrides["max_hours"] = float(overrides["max_hours"])
+    kw = {k: v for k, v in overrides.items() if k not in ("threads", "progress", "max_hours")}
     return Result(_edgekf.reproduce(name, **overrides), _call("reproduce", repr(name), **kw))
 
 
@@ -348,6 +418,7 @@ def design(
     leaders: Union[None, Sequence[int], str] = None,
     leader_mode: str = "clique",
     name: str = "python",
+    max_hours: float = 1.0,
 ) -> Dict[str, Any]:
     """Designs stress weights for a framework (``edgekf design``).
 
@@ -357,7 +428,8 @@ def design(
 
     Returns the ``edgekf.framework/1`` document with ``weights`` (``edges`` reduced to the links
     with a nonzero weight). Raises ``ValueError`` when the input is malformed or infeasible (the
-    failed condition named).
+    failed condition named), or when the design is estimated to take longer than ``max_hours``
+    (default 1 h, as ``edgekf design --max-hours``) or more than 80 % of the available memory.
     """
     mode = None
     lead: Optional[List[int]] = None
@@ -368,7 +440,7 @@ def design(
     elif leaders is not None:
         lead = [int(i) for i in leaders]
     doc = _edgekf.design_json(
-        _config_list(config), _edges_list(edges), method, lead, mode, name
+        _config_list(config), _edges_list(edges), method, lead, mode, name, float(max_hours)
     )
     return json.loads(doc)
 
@@ -390,13 +462,13 @@ def check(
 
 
 def _mat(a: Any, what: str, b: int, d: int, batched: bool) -> np.ndarray:
+    """A covariance argument as a float64 array: a scalar (times I), (D, D) for every edge, or
+    (B, D, D) in the batched form; shapes checked here, the rest (finite, symmetric, PSD / PD)
+    by the extension, naming ``what``."""
     m = np.asarray(a, dtype=np.float64)
     if m.ndim == 0:
         m = m * np.eye(d)
-    if m.shape == (d, d):
-        if what == "P0":
-            m = np.broadcast_to(m, (b, d, d))
-    elif not (batched and m.shape == (b, d, d)):
+    if m.shape != (d, d) and not (batched and m.shape == (b, d, d)):
         want = f"({d}, {d})" + (f" or ({b}, {d}, {d})" if batched else "")
         raise ValueError(f"{what}: expected shape {want}, got {m.shape}")
     return np.ascontiguousarray(m)
@@ -427,16 +499,22 @@ class EdgeFilter:
     (eq. 7). No input: ``predict()`` / ``step(None, y)``. The update corrects only the observed
     edges: ``observed`` a boolean per edge, or by default the rows of ``y`` without NaN.
     Returns ``x̂`` as (3, D) / (B, 3, D) and ``P`` as (3D, 3D) / (B, 3D, 3D).
+
+    Everything is checked when the filter is built, with the CLI's standards, and a
+    ``ValueError`` names the argument (and, in a batch, the edge): shapes, finite entries,
+    ``P0`` and ``Q`` symmetric positive semidefinite, ``R`` symmetric positive definite (the
+    update inverts ``P⁻ + R``), ``dt`` and ``sigma_w`` finite and positive. NumPy scalars are
+    taken wherever numbers are.
     """
 
     def __init__(
         self,
         kind: str = "rkf",
         *,
-        R: Any,
-        x0: Any,
-        P0: Any,
-        Q: Any = None,
+        R: npt.ArrayLike,
+        x0: npt.ArrayLike,
+        P0: npt.ArrayLike,
+        Q: Optional[npt.ArrayLike] = None,
         dt: Optional[float] = None,
         sigma_w: float = 1.0,
     ) -> None:
@@ -526,7 +604,7 @@ class EdgeFilter:
             raise ValueError(f"observed: expected shape {want}, got {m.shape}")
         return np.ascontiguousarray(m.reshape(self.batch))
 
-    def predict(self, du: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+    def predict(self, du: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, np.ndarray]:
         """Prediction: RKF (5c), (5d) with the input displacement ``du``; CA: ``γ̂ ← F γ̂``,
         ``Λ ← F Λ Fᵀ + Q`` (Li & Rajan eqs. 6, 7; ``du`` must be None). Returns ``(x̂⁻, P⁻)``."""
         if self.kind == "rkf-ca":
@@ -537,7 +615,9 @@ class EdgeFilter:
             raise ValueError("du: the RKF's prediction needs the input displacement Δt (u_i − u_j)")
         return self._out(self._bank.predict(self._arg(du, "du")))
 
-    def update(self, y: Any, observed: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, y: npt.ArrayLike, observed: Optional[npt.ArrayLike] = None
+    ) -> Tuple[np.ndarray, np.ndarray]:
         """Update with the measurement ``y``; returns ``(x̂, P)``.
 
         RKF: (5e)–(5g), every edge observed (``observed`` must be None); raises ``ValueError``
@@ -553,7 +633,12 @@ class EdgeFilter:
             raise ValueError("observed: kind 'rkf' observes every edge; use kind 'rkf-ca' for intermittent observations")
         return self._out(self._bank.update(self._arg(y, "y")))
 
-    def step(self, du: Any, y: Any, observed: Any = None) -> Tuple[np.ndarray, np.ndarray]:
+    def step(
+        self,
+        du: Optional[npt.ArrayLike],
+        y: npt.ArrayLike,
+        observed: Optional[npt.ArrayLike] = None,
+    ) -> Tuple[np.ndarray, np.ndarray]:
         """``predict(du)`` then ``update(y, observed)``; returns ``(x̂, P)``. Atomic on error."""
         if self.kind == "rkf-ca":
             self._no_du(du)

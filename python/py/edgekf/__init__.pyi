@@ -1,7 +1,7 @@
 """Type stubs of the Python package `edgekf` (the docstrings are in `__init__.py`)."""
 
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, SupportsIndex, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -10,6 +10,10 @@ __version__: str
 
 ScenarioLike = Union[str, os.PathLike[str], Dict[str, Any]]
 F64 = npt.NDArray[np.float64]
+# A whole number: an int or a NumPy integer (anything with __index__); range-checked by name.
+Count = Optional[SupportsIndex]
+# A real number: a Python or NumPy float or integer.
+Real = Union[float, np.floating[Any], np.integer[Any]]
 
 class Result:
     """The outcome of a Monte Carlo study."""
@@ -35,9 +39,12 @@ class Result:
     def status(self, estimator: str) -> Dict[str, Any]: ...
     def metrics_csv(self) -> str: ...
     def to_pandas(self) -> Any: ...
-    def save(self, dir: Union[str, os.PathLike[str]], *, figures: bool = ...) -> None:
+    def save(
+        self, dir: Union[str, os.PathLike[str]], *, figures: bool = ..., force: bool = ...
+    ) -> None:
         """Writes the CLI's files (metrics.csv byte-identical to `edgekf run`), provenance.json
-        and the figures."""
+        (with the list of files) and the figures. FileExistsError if `dir` holds another study
+        (`force=True` empties it), OSError if it cannot be written."""
     @property
     def sweep_parameter(self) -> Optional[str]: ...
     def sweep_summary(self) -> Optional[Dict[str, Any]]: ...
@@ -45,26 +52,30 @@ class Result:
 def run(
     scenario: ScenarioLike,
     *,
-    runs: Optional[int] = ...,
-    steps: Optional[int] = ...,
-    seed: Optional[int] = ...,
-    threads: Optional[int] = ...,
-    every: Optional[int] = ...,
+    runs: Count = ...,
+    steps: Count = ...,
+    seed: Count = ...,
+    threads: Count = ...,
+    every: Count = ...,
     progress: bool = ...,
+    max_hours: Real = ...,
 ) -> Result:
-    """Runs a scenario as `edgekf run` does; ValueError with the CLI's message on bad input."""
+    """Runs a scenario as `edgekf run` does; ValueError with the CLI's message on bad input
+    (naming the parameter for a count or seed out of range), FileNotFoundError for a missing
+    file."""
 
 def resolve(scenario: ScenarioLike) -> Dict[str, Any]: ...
 def list_reproductions() -> List[Dict[str, Any]]: ...
 def reproduce(
     name: str,
     *,
-    runs: Optional[int] = ...,
-    steps: Optional[int] = ...,
-    seed: Optional[int] = ...,
-    every: Optional[int] = ...,
-    threads: Optional[int] = ...,
+    runs: Count = ...,
+    steps: Count = ...,
+    seed: Count = ...,
+    every: Count = ...,
+    threads: Count = ...,
     progress: bool = ...,
+    max_hours: Real = ...,
 ) -> Result: ...
 def design(
     config: npt.ArrayLike,
@@ -74,6 +85,7 @@ def design(
     leaders: Union[None, Sequence[int], str] = ...,
     leader_mode: str = ...,
     name: str = ...,
+    max_hours: Real = ...,
 ) -> Dict[str, Any]:
     """Stress weights by the thesis SDP (3.5), Yang et al. 2019, or the sparse design."""
 
@@ -101,9 +113,12 @@ class EdgeFilter:
         x0: npt.ArrayLike,
         P0: npt.ArrayLike,
         Q: Optional[npt.ArrayLike] = ...,
-        dt: Optional[float] = ...,
-        sigma_w: float = ...,
-    ) -> None: ...
+        dt: Optional[Real] = ...,
+        sigma_w: Real = ...,
+    ) -> None:
+        """ValueError naming the argument (and the edge) when x0, P0, Q or R has the wrong
+        shape or a non-finite entry, or a covariance is not symmetric, P0 or Q not positive
+        semidefinite, R not positive definite."""
     def predict(self, du: Optional[npt.ArrayLike] = ...) -> Tuple[F64, F64]:
         """RKF (5c), (5d); CA eqs. (6), (7) (du None)."""
     def update(self, y: npt.ArrayLike, observed: Optional[npt.ArrayLike] = ...) -> Tuple[F64, F64]:

@@ -11,7 +11,8 @@
 //!   interior-point method with a barrier-method fallback (private modules `ipm`, `barrier`);
 //! - chooses leaders for a designed framework by `λ_min(L_ff)` ([`leaders`]) — the design itself
 //!   does not depend on who leads, and leaders need not be linked;
-//! - generates configurations and candidate graphs ([`generators`]).
+//! - generates configurations and candidate graphs ([`generators`]);
+//! - estimates the memory and time of a design before it runs ([`cost`]).
 //!
 //! All designs share one parametrisation: a stress is a weight vector `w` (one per link) with
 //! `L(w) [P 1] = 0`. These `w` form the null space of the *equilibrium map*
@@ -35,6 +36,7 @@ mod barrier;
 pub mod checks;
 #[cfg(feature = "clarabel")]
 mod conic;
+pub mod cost;
 mod dense;
 pub mod generators;
 mod ipm;

@@ -24,6 +24,16 @@ pub(crate) enum Keys {
 }
 
 impl Keys {
+    /// How this input allows a run past the stability bound: the key `sim.allow_divergence`
+    /// (TOML), `allow_divergence` (resolved), or the flag `--allow-divergence`.
+    pub(crate) fn allow_divergence(self) -> &'static str {
+        match self {
+            Keys::Toml => "set `sim.allow_divergence = true`",
+            Keys::Resolved => "set `\"allow_divergence\": true`",
+            Keys::Flags => "pass `--allow-divergence`",
+        }
+    }
+
     /// The name of `key` (given in TOML spelling) in this input.
     pub(crate) fn key(self, key: &'static str) -> &'static str {
         match self {

@@ -939,11 +939,12 @@ impl Scenario {
             return Err(err(
                 k.key("sim.dt"),
                 format!(
-                    "Δt·c·λ_max(L_ff) = {b:.3} ≥ 2: the followers' discrete closed loop is unstable (Δt = {}, c = {}, λ_max = {:.4}); lower Δt below {:.3e} or set `allow_divergence = true` to show the divergence",
+                    "Δt·c·λ_max(L_ff) = {b:.3} ≥ 2: the followers' discrete closed loop is unstable (Δt = {}, c = {}, λ_max = {:.4}); lower Δt below {:.3e} or {} to show the divergence",
                     self.model.dt(),
                     self.control.follower_gain,
                     b / (self.model.dt() * self.control.follower_gain),
-                    2.0 * self.model.dt() / b
+                    2.0 * self.model.dt() / b,
+                    k.allow_divergence()
                 ),
             ));
         }
@@ -971,8 +972,8 @@ impl Scenario {
                     return Err(err(
                         key,
                         format!(
-                            "the varying-velocity law (Zhao 2018) in discrete time, with the neighbours' velocities from their previous inputs, has spectral radius {:.4} ≥ 1 at Δt = {dt} on this stress (its Jacobi radius ρ(Γ⁻¹W_ff) = {:.4} must be < 1); use `static` or `pi`, or set `allow_divergence = true` to show the divergence",
-                            rep.spectral_radius, rep.jacobi_radius
+                            "the varying-velocity law (Zhao 2018) in discrete time, with the neighbours' velocities from their previous inputs, has spectral radius {:.4} ≥ 1 at Δt = {dt} on this stress (its Jacobi radius ρ(Γ⁻¹W_ff) = {:.4} must be < 1); use `static` or `pi`, or {} to show the divergence",
+                            rep.spectral_radius, rep.jacobi_radius, k.allow_divergence()
                         ),
                     ));
                 }
@@ -984,7 +985,8 @@ impl Scenario {
                     return Err(err(
                         key,
                         format!(
-                            "the PI law's discrete closed loop has spectral radius {rho:.4} ≥ 1 (α = {alpha}, η = {eta}, Δt = {dt}); lower α, η or Δt, or set `allow_divergence = true`"
+                            "the PI law's discrete closed loop has spectral radius {rho:.4} ≥ 1 (α = {alpha}, η = {eta}, Δt = {dt}); lower α, η or Δt, or {} to show the divergence",
+                            k.allow_divergence()
                         ),
                     ));
                 }

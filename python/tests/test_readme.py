@@ -1,0 +1,31 @@
+"""The Python code of the READMEs runs as written: every ```python block of README.md and
+python/README.md, in a fresh namespace, from a scratch folder where `scenarios/` is the
+repository's."""
+
+import os
+import re
+
+import pytest
+
+from conftest import ROOT
+
+BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+
+
+def blocks():
+    out = []
+    for readme in (ROOT / "README.md", ROOT / "python" / "README.md"):
+        for k, code in enumerate(BLOCK.findall(readme.read_text(encoding="utf-8"))):
+            out.append(pytest.param(code, id=f"{readme.relative_to(ROOT)}#{k}"))
+    return out
+
+
+def test_the_readmes_have_python_blocks():
+    assert len(blocks()) >= 2
+
+
+@pytest.mark.parametrize("code", blocks())
+def test_readme_block_runs(code, tmp_path, monkeypatch):
+    (tmp_path / "scenarios").symlink_to(ROOT / "scenarios")
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README", "exec"), {"__name__": "__readme__"})
