@@ -605,7 +605,9 @@ fn fit_ar(
 /// `allow_divergence` before it is checked, so it lifts the load-time stability refusal exactly
 /// as the key does; without it, a refusal that the key would lift names the flag too.
 fn load(source: &str, text: &str, base: Option<&Path>, over: &Overrides) -> Result<Scenario> {
-    load_with(source, text, over, &|t| Ok(io::load_scenario(source, t, base)?))
+    load_with(source, text, over, &|t| {
+        Ok(io::load_scenario(source, t, base)?)
+    })
 }
 
 /// [`load`] with the scenario text parsed and checked by `parse`.
@@ -701,7 +703,13 @@ fn stage_outputs(
         )?;
     }
     edgekf_io::stage_tables(st, sc, res)?;
-    Ok(figure::render_study(|file| st.path(file), sc, res, plots, extra)?)
+    Ok(figure::render_study(
+        |file| st.path(file),
+        sc,
+        res,
+        plots,
+        extra,
+    )?)
 }
 
 fn merge(parts: &[PathBuf], out: &Path, json: bool, force: bool) -> Result<ExitCode> {
@@ -786,7 +794,11 @@ fn reproduce(
                 continue;
             }
             let sc = load_with(file, text, over, &|t| {
-                Ok(io::load_scenario_with(file, t, &registry::embedded_framework)?)
+                Ok(io::load_scenario_with(
+                    file,
+                    t,
+                    &registry::embedded_framework,
+                )?)
             })?;
             check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
             files.push((file, sc));

@@ -76,7 +76,10 @@ fn swarm(sc: &Scenario, tag: &str) -> edgekf_swarm::world_node::WorldOutcome {
 #[test]
 fn lockstep_over_zenoh_equals_the_engine() {
     for (tag, est) in [
-        ("rkf", r#""rkf", "mle", { kind = "mmse", prior_var = 1e-3 }, "jrkf""#),
+        (
+            "rkf",
+            r#""rkf", "mle", { kind = "mmse", prior_var = 1e-3 }, "jrkf""#,
+        ),
         ("garkf", r#""garkf""#),
     ] {
         let sc = scenario(est, "");
