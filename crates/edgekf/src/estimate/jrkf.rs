@@ -153,6 +153,19 @@ impl Configured for Config {
     fn link_failure(&self) -> Option<f64> {
         self.ar
     }
+    fn consistency(&self, m: &Model) -> super::Consistency {
+        use super::Consistency;
+        match self.ar {
+            _ if m.measurement_faults() => Consistency::Approximate(
+                "an input lost with its measurement is not known (taken as zero or predicted), and departed agents stop, which its model does not know",
+            ),
+            Some(p) if p > 0.0 => Consistency::Approximate(
+                "lost inputs are predicted by the AR model, an approximation of the closed loop's inputs",
+            ),
+            // `jrkf`, and `jrkf-ar` without failures (the JRKF bit for bit).
+            _ => Consistency::Exact,
+        }
+    }
 }
 
 /// One agent's joint covariance recursion (and its gain, row-major).
@@ -556,5 +569,12 @@ impl Estimator for Jrkf {
 
     fn breakdown(&self) -> Option<&Breakdown> {
         self.breakdown.as_ref()
+    }
+
+    fn covariances(&self, r: usize) -> Vec<DMatrix<f64>> {
+        (0..self.agent_edges.len())
+            .filter(|&i| !self.agent_edges[i].is_empty())
+            .map(|i| self.covariance(i, r).clone())
+            .collect()
     }
 }
