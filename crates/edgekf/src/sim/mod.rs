@@ -4,9 +4,9 @@
 //!
 //! 1. **world** ([`world`]): the step's draws from each run's own stream in a documented, stable
 //!    order; the target `Z*(t_k)`;
-//! 2. **faults** ([`faults`]): which directed edges deliver their measurement and message, which
+//! 2. **faults** (`faults`): which directed edges deliver their measurement and message, which
 //!    agents are present;
-//! 3. **sensing** ([`sensing`]): the T-sample measurement means, drawn directly;
+//! 3. **sensing** (`sensing`): the T-sample measurement means, drawn directly;
 //! 4. **estimation**: every estimator of the scenario, each in its own closed loop (so their
 //!    comparison is paired: common random numbers), predicting with `u_{k−1}` and updating with
 //!    `ȳ_k` (thesis Algorithms 5–7);
