@@ -327,13 +327,13 @@ pub enum SlamStat {
     /// `V̇_ob − (−eᵀΩ(δ)e + δ‖w‖²)` with eq. (24)'s printed `+1/δ` at `w = δ⁻¹P̄⁻¹e` (δ = 0.7):
     /// > 0 means the bound (26) is violated.
     Eq26PrintedSign,
-    /// `est_err_total` at the horizon [m].
+    /// `est_err_total` at the horizon \[m\].
     FinalEstimationError,
-    /// `formation_err` at the horizon [m].
+    /// `formation_err` at the horizon \[m\].
     FinalFormationError,
-    /// `centroid_err` at the horizon [m].
+    /// `centroid_err` at the horizon \[m\].
     FinalCentroidError,
-    /// The largest error of any robot's estimate of any landmark at the horizon [m].
+    /// The largest error of any robot's estimate of any landmark at the horizon \[m\].
     FinalLandmarkError,
     /// `est_err_total` at the horizon over its peak.
     FinalOverPeak,

@@ -1,5 +1,5 @@
 //! The figures of sweeps and GA-RKF studies (Li & Rajan Figs 8–13), drawn with the figure
-//! toolkit ([`crate::figure`]):
+//! toolkit of this crate:
 //!
 //! - `panels`: a grid of metrics over time, one column per sweep value or one column, curves
 //!   per estimator or per sweep value, bands ±1σ over the runs or min–max over the agents, and

@@ -126,7 +126,11 @@ impl Endpoints {
             .filter(|&&j| j > i)
             .map(|&j| self.mesh(j))
             .collect();
-        insert(&mut c, "listen/endpoints", &json_list(std::slice::from_ref(&me)))?;
+        insert(
+            &mut c,
+            "listen/endpoints",
+            &json_list(std::slice::from_ref(&me)),
+        )?;
         insert(&mut c, "connect/endpoints", &json_list(&peers))?;
         open(c, &format!("listen on the mesh at {me}"))
     }

@@ -39,7 +39,7 @@
 //! `report_axis_kernel_timing`): ≈ 2.7 ns per run-step for the prediction, 4.5 ns for the
 //! Joseph correction, 2 ns for the means; streaming 2,450 batches through memory (Fig. 13's
 //! dense graph) the three together cost ≈ 23 ns (`report_many_batches_timing`) — the closed
-//! loop is bound by memory traffic, which is what [`super::rkf_ca::CaEdges`] reduces.
+//! loop is bound by memory traffic, which is what `rkf_ca::CaEdges` reduces.
 //!
 //! Structure exploited: `F = f ⊗ I_D` with `f` upper-triangular, so `F Λ Fᵀ` acts on each
 //! dimension pair's 3 × 3 block as `f B fᵀ` (three row and three column operations); `G`

@@ -31,7 +31,8 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use super::{
-    parse_options, Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    parse_options, Breakdown, Configured, Consistency, Cost, Estimator, EstimatorKind, Model,
+    Options, Step,
 };
 use crate::linalg::{
     batch_gemv, batch_gemv_acc, converged, invert_spd, to_row_major, trace_of_product_sym,
@@ -93,6 +94,15 @@ impl Configured for Config {
                 flops_per_run_step: inv + 4.0 * md,
                 flops_shared_step: 0.0,
             }
+        }
+    }
+    fn consistency(&self, m: &Model) -> Consistency {
+        if m.measurement_faults() {
+            Consistency::Approximate(
+                "departed agents stop (no input, no process noise), which its model does not know",
+            )
+        } else {
+            Consistency::Exact
         }
     }
 }
@@ -302,8 +312,16 @@ fn add_edge_information(j: &mut DMatrix<f64>, (a, b): (usize, usize), d: usize, 
     for (p, cp) in [(a, 1.0), (b, -1.0)] {
         for (q, cq) in [(a, 1.0), (b, -1.0)] {
             if p > 0 && q > 0 {
-                let mut v = j.view_mut(((p - 1) * d, (q - 1) * d), (d, d));
-                v += wi * (cp * cq);
+                // Entry by entry: `view += wi * c` would allocate the product (this runs in
+                // the step loop, per run, when measurements fail); the same floating-point
+                // operations in the same order.
+                let c = cp * cq;
+                let (r0, c0) = ((p - 1) * d, (q - 1) * d);
+                for col in 0..d {
+                    for row in 0..d {
+                        j[(r0 + row, c0 + col)] += wi[(row, col)] * c;
+                    }
+                }
             }
         }
     }
@@ -409,5 +427,9 @@ impl Estimator for Crkf {
 
     fn breakdown(&self) -> Option<&Breakdown> {
         self.breakdown.as_ref()
+    }
+
+    fn covariances(&self, r: usize) -> Vec<DMatrix<f64>> {
+        vec![self.node_covariance(r).clone()]
     }
 }

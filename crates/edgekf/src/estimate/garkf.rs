@@ -322,6 +322,10 @@ impl Configured for Config {
     fn shared_gain(&self, _m: &Model) -> bool {
         false
     }
+
+    fn consistency(&self, _m: &Model) -> super::Consistency {
+        super::Consistency::Approximate(super::rkf_ca::CA_APPROXIMATE)
+    }
 }
 
 /// GA-RKF's metrics (with a fixed σ_w: the PCRB; adaptive: the learnt scales instead).
@@ -827,5 +831,11 @@ impl<const D: usize> Estimator for Garkf<D> {
 
     fn exchange(&mut self) -> Option<&mut dyn Exchange> {
         Some(self)
+    }
+
+    fn covariances(&self, r: usize) -> Vec<nalgebra::DMatrix<f64>> {
+        (0..self.ca.edges.len())
+            .map(|e| self.covariance(e, r))
+            .collect()
     }
 }

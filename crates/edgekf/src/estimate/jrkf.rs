@@ -193,6 +193,33 @@ impl Configured for Config {
     fn link_failure(&self) -> Option<f64> {
         self.ar
     }
+    fn consistency(&self, m: &Model) -> super::Consistency {
+        use super::Consistency;
+        if self.adapt.is_some() {
+            return Consistency::Approximate(
+                "the noise scales are learnt online: consistent only once they have converged",
+            );
+        }
+        if self
+            .assumed
+            .as_ref()
+            .is_some_and(|a| a.sigma_w_option.is_some() || a.sigma_v_option.is_some())
+        {
+            return Consistency::Approximate(
+                "its own sigma_w or sigma_v differ from the world's noise",
+            );
+        }
+        match self.ar {
+            _ if m.measurement_faults() => Consistency::Approximate(
+                "an input lost with its measurement is not known (taken as zero or predicted), and departed agents stop, which its model does not know",
+            ),
+            Some(p) if p > 0.0 => Consistency::Approximate(
+                "lost inputs are predicted by the AR model, an approximation of the closed loop's inputs",
+            ),
+            // `jrkf`, and `jrkf-ar` without failures (the JRKF bit for bit).
+            _ => Consistency::Exact,
+        }
+    }
 }
 
 /// One agent's joint covariance recursion (and its gain, row-major).
@@ -618,5 +645,12 @@ impl Estimator for Jrkf {
 
     fn breakdown(&self) -> Option<&Breakdown> {
         self.breakdown.as_ref()
+    }
+
+    fn covariances(&self, r: usize) -> Vec<DMatrix<f64>> {
+        (0..self.agent_edges.len())
+            .filter(|&i| !self.agent_edges[i].is_empty())
+            .map(|i| self.covariance(i, r).clone())
+            .collect()
     }
 }

@@ -17,9 +17,11 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use nalgebra::DMatrix;
+
 use super::{
-    cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Cost, Estimator, EstimatorKind,
-    Model, Options, Step,
+    cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Consistency, Cost, Estimator,
+    EstimatorKind, Model, Options, Step,
 };
 
 /// `kind = "none"`: one raw sample per step.
@@ -80,6 +82,15 @@ impl Configured for Config {
             ..Cost::default()
         }
     }
+    fn consistency(&self, m: &Model) -> Consistency {
+        if m.measurement_faults() {
+            Consistency::Approximate(
+                "an edge without a measurement has no estimate (0), an error its covariance does not count",
+            )
+        } else {
+            Consistency::Exact
+        }
+    }
 }
 
 /// The MLE: the edge estimate is the measurement mean.
@@ -90,6 +101,8 @@ pub struct Mle {
     x: Vec<f64>,
     /// `tr(R_ij / T)` per edge.
     traces: Vec<f64>,
+    /// `R_ij / T` per edge.
+    covs: Vec<DMatrix<f64>>,
     /// Each agent's edges.
     owners: Vec<std::ops::Range<usize>>,
 }
@@ -97,11 +110,13 @@ pub struct Mle {
 impl Mle {
     /// For `runs` runs with `samples` measurements per step.
     pub fn new(m: &Model, samples: usize, runs: usize) -> Self {
+        let covs = m.mean_cov(samples);
         Self {
             runs,
             dim: m.dim(),
             x: vec![0.0; m.num_edges() * m.dim() * runs],
-            traces: m.mean_cov(samples).iter().map(|w| w.trace()).collect(),
+            traces: covs.iter().map(|w| w.trace()).collect(),
+            covs,
             owners: m.agent_edges().to_vec(),
         }
     }
@@ -135,5 +150,8 @@ impl Estimator for Mle {
             |e| s.faults.observed(e, r),
             |e| self.traces[e],
         ))
+    }
+    fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
+        self.covs.clone()
     }
 }

@@ -13,12 +13,12 @@
 
 use std::sync::Arc;
 
-use nalgebra::SMatrix;
+use nalgebra::{DMatrix, SMatrix};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static, Configured, Cost,
-    Estimator, EstimatorKind, Model, Options, Step,
+    cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_dynamic, to_static,
+    Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -50,6 +50,9 @@ impl EstimatorKind for Kind {
         }
         Ok(Arc::new(Config(opt)))
     }
+    fn example_options(&self) -> Options {
+        options_of(&MmseOptions { prior_var: 1e-3 })
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -70,6 +73,11 @@ impl Configured for Config {
             flops_per_run_step: me * 2.0 * d * d,
             ..Cost::default()
         }
+    }
+    fn consistency(&self, _m: &Model) -> Consistency {
+        Consistency::Approximate(
+            "a fixed prior σ²_prior I around the last estimate, not the world's motion model",
+        )
     }
 }
 
@@ -157,5 +165,8 @@ impl<const D: usize> Estimator for Mmse<D> {
             |e| s.faults.tracked(e, r),
             |e| self.traces[e],
         ))
+    }
+    fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
+        self.posteriors.iter().map(to_dynamic).collect()
     }
 }

@@ -42,6 +42,13 @@
 //! implementing [`Estimator`], with the equations in the module doc; then add one line to
 //! [`Registry::builtin`]. A caller can also register a kind of its own with
 //! [`Registry::with`] (see `tests/registry.rs`).
+//!
+//! `tests/invariants.rs` then checks the new kind with every other one of the registry, with
+//! no edit: bit-identical results for any thread count, no allocation in the step loop,
+//! symmetric PSD covariances, and (where it says it is [`Consistency::Exact`]) a mean squared
+//! error equal to its `cov_trace`. For that, give [`EstimatorKind::example_options`] when an
+//! option is required, [`Estimator::covariances`] when it has a covariance, and
+//! [`Configured::consistency`].
 
 pub mod adaptive;
 pub mod ar;
@@ -127,6 +134,15 @@ pub trait Estimator: Send {
     /// message in between.
     fn exchange(&mut self) -> Option<&mut dyn Exchange> {
         None
+    }
+    /// Every posterior covariance it holds for run `r` of its batch, as it stands after the last
+    /// step: one per directed edge (`rkf`, `mle`, the CA filters' 3D × 3D blocks), one per agent
+    /// (`jrkf`'s joint blocks) or the joint one (`crkf`, in node space); empty for an estimator
+    /// without a covariance (`oracle`). For tests of invariants (`tests/invariants.rs` checks
+    /// that every one stays symmetric positive semidefinite); it allocates, so the engine never
+    /// calls it in the step loop.
+    fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
+        Vec::new()
     }
 }
 
@@ -264,6 +280,27 @@ pub trait Configured: fmt::Debug + Send + Sync {
     fn link_failure(&self) -> Option<f64> {
         None
     }
+    /// Whether its `cov_trace` is its mean squared error on the engine's world with `model`
+    /// ([`Consistency`]); `tests/invariants.rs` checks every kind that says
+    /// [`Consistency::Exact`].
+    fn consistency(&self, _model: &Model) -> Consistency {
+        Consistency::Undeclared
+    }
+}
+
+/// Whether an estimator's reported covariance is its actual error covariance on the engine's
+/// simulated world (the scenario's model: single-integrator agents, `Q` and `R_ij` as
+/// resolved, the initial positions' `P`), i.e. whether the mean of `est_error_sq` over runs
+/// equals the mean of `cov_trace` up to Monte Carlo error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Consistency {
+    /// A Kalman filter (or the MLE) whose model is the simulated world: `E ε² = cov_trace`.
+    Exact,
+    /// Its model is an approximation of the world (or its covariance does not count all of its
+    /// error); why.
+    Approximate(&'static str),
+    /// The estimator does not say (the default for a kind defined outside this crate).
+    Undeclared,
 }
 
 /// A kind of estimator: its name in scenario files and how its options become a configured
@@ -277,6 +314,13 @@ pub trait EstimatorKind: Send + Sync {
     /// (`none` uses one raw sample).
     fn fixed_samples(&self) -> Option<usize> {
         None
+    }
+    /// Options that configure this kind on a test scenario (the thesis hexagon, with an AR
+    /// model in `[comm]`): empty unless an option is required (`mmse` needs `prior_var`). The
+    /// registry-wide invariant tests (`tests/invariants.rs`) build every kind with them, so a
+    /// new kind is covered without editing a test.
+    fn example_options(&self) -> Options {
+        Options::new()
     }
     /// Checks the kind's own options against the model.
     ///
@@ -391,6 +435,11 @@ pub fn check_kalman(m: &Model, kind: &str) -> Result<(), String> {
 /// Converts a dynamic D × D matrix into a static one.
 pub(crate) fn to_static<const D: usize>(m: &DMatrix<f64>) -> SMatrix<f64, D, D> {
     SMatrix::<f64, D, D>::from_fn(|i, j| m[(i, j)])
+}
+
+/// Converts a static D × D matrix into a dynamic one.
+pub(crate) fn to_dynamic<const D: usize>(m: &SMatrix<f64, D, D>) -> DMatrix<f64> {
+    DMatrix::from_fn(D, D, |i, j| m[(i, j)])
 }
 
 /// Builds a const-generic estimator for the model's dimension.

@@ -5,7 +5,9 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
-use super::{parse_options, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step};
+use super::{
+    parse_options, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
+};
 
 /// `kind = "oracle"`.
 #[derive(Debug, Clone, Copy)]
@@ -53,6 +55,10 @@ impl Configured for Config {
     }
     fn shared_gain(&self, _m: &Model) -> bool {
         true
+    }
+    fn consistency(&self, _m: &Model) -> Consistency {
+        // Its error and its covariance trace are both 0.
+        Consistency::Exact
     }
 }
 

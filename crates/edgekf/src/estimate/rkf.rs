@@ -288,6 +288,37 @@ impl Configured for Config {
                 _ => true,
             }
     }
+
+    fn consistency(&self, m: &Model) -> super::Consistency {
+        use super::Consistency;
+        let retuned = self
+            .assumed
+            .as_ref()
+            .is_some_and(|a| a.sigma_w_option.is_some() || a.sigma_v_option.is_some());
+        if self.adapt.is_some() {
+            return Consistency::Approximate(
+                "the noise scales are learnt online: consistent only once they have converged",
+            );
+        }
+        if retuned {
+            return Consistency::Approximate(
+                "its own sigma_w or sigma_v differ from the world's noise",
+            );
+        }
+        match self.input {
+            Input::Zero => Consistency::Approximate(
+                "the neighbour's input is taken as zero: biased whenever the neighbour moves",
+            ),
+            _ if m.measurement_faults() => Consistency::Approximate(
+                "an input lost with its measurement is not known (taken as zero or predicted), and departed agents stop, which its model does not know",
+            ),
+            Input::Ar { p_fail } if p_fail > 0.0 => Consistency::Approximate(
+                "lost inputs are predicted by the AR model, an approximation of the closed loop's inputs",
+            ),
+            // `rkf`, and `rkf-ar` without failures (the RKF bit for bit).
+            _ => Consistency::Exact,
+        }
+    }
 }
 
 /// The covariances: one per edge shared by all runs, or one per (edge, run).
@@ -720,6 +751,12 @@ impl<const D: usize> Estimator for Rkf<D> {
 
     fn breakdown(&self) -> Option<&Breakdown> {
         self.breakdown.as_ref()
+    }
+
+    fn covariances(&self, r: usize) -> Vec<nalgebra::DMatrix<f64>> {
+        (0..self.edges.len())
+            .map(|e| super::to_dynamic(&self.covariance(e, r)))
+            .collect()
     }
 }
 

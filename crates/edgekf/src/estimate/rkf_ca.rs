@@ -260,7 +260,15 @@ impl Configured for Config {
     fn shared_gain(&self, _m: &Model) -> bool {
         false
     }
+
+    fn consistency(&self, _m: &Model) -> super::Consistency {
+        super::Consistency::Approximate(CA_APPROXIMATE)
+    }
 }
+
+/// Why a CA filter is not consistent on the engine's world.
+pub(crate) const CA_APPROXIMATE: &str =
+    "a constant-acceleration model of the edges against the engine's random-walk (single-integrator) world";
 
 /// The cost of the CA edge filters (`axes_ok` as for [`CaEdges::new`]; the geometric part of
 /// GA-RKF adds its own).
@@ -1127,6 +1135,12 @@ impl<const D: usize> Estimator for RkfCa<D> {
             (i, r),
             s,
         )
+    }
+
+    fn covariances(&self, r: usize) -> Vec<DMatrix<f64>> {
+        (0..self.ca.edges.len())
+            .map(|e| self.covariance(e, r))
+            .collect()
     }
 }
 

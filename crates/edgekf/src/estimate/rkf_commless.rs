@@ -33,8 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::{
-    check_kalman, cov_trace_of_agents, edge_trace_sum, parse_options, to_static, Breakdown,
-    Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    check_kalman, cov_trace_of_agents, edge_trace_sum, parse_options, to_dynamic, to_static,
+    Breakdown, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -91,6 +91,11 @@ impl Configured for Config {
             flops_per_run_step: me * (4.0 * d * d + 6.0 * d) * if shared { 1.0 } else { 12.0 },
             flops_shared_step: if shared { me * 120.0 * d * d } else { 0.0 },
         }
+    }
+    fn consistency(&self, _m: &Model) -> Consistency {
+        Consistency::Approximate(
+            "without communication the neighbours' inputs are predicted by an AR(1) model of them, an approximation of the closed loop's inputs",
+        )
     }
 }
 
@@ -392,5 +397,11 @@ impl<const D: usize> Estimator for RkfCommless<D> {
 
     fn breakdown(&self) -> Option<&Breakdown> {
         self.breakdown.as_ref()
+    }
+
+    fn covariances(&self, r: usize) -> Vec<nalgebra::DMatrix<f64>> {
+        (0..self.edges.len())
+            .map(|e| to_dynamic(&self.covariance(e, r)))
+            .collect()
     }
 }

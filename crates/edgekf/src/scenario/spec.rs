@@ -272,9 +272,9 @@ pub struct CommSpec {
 pub struct DepartureSpec {
     /// The agent (a follower).
     pub agent: usize,
-    /// When it leaves [s].
+    /// When it leaves \[s\].
     pub at: f64,
-    /// When it comes back [s] (optional).
+    /// When it comes back \[s\] (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rejoin: Option<f64>,
 }
@@ -286,7 +286,7 @@ pub struct DepartureSpec {
 pub struct RandomDepartureSpec {
     /// Share of the followers that leaves, in [0, 1] (rounded to a whole number of agents).
     pub share: f64,
-    /// When they leave [s].
+    /// When they leave \[s\].
     pub at: f64,
 }
 

@@ -139,6 +139,11 @@ impl Lane {
         self.stop.is_none()
     }
 
+    /// Its estimator.
+    pub(crate) fn estimator(&self) -> &dyn Estimator {
+        self.est.as_ref()
+    }
+
     /// Step k: sensing → estimation → (metrics at a report) → control → motion.
     pub(crate) fn step(&mut self, at: At, sh: &Shared<'_>, cx: &Context<'_>) {
         let Lane {

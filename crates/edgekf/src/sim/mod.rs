@@ -4,9 +4,9 @@
 //!
 //! 1. **world** ([`world`]): the step's draws from each run's own stream in a documented, stable
 //!    order; the target `Z*(t_k)`;
-//! 2. **faults** ([`faults`]): which directed edges deliver their measurement and message, which
+//! 2. **faults** (`faults`): which directed edges deliver their measurement and message, which
 //!    agents are present;
-//! 3. **sensing** ([`sensing`]): the T-sample measurement means, drawn directly;
+//! 3. **sensing** (`sensing`): the T-sample measurement means, drawn directly;
 //! 4. **estimation**: every estimator of the scenario, each in its own closed loop (so their
 //!    comparison is paired: common random numbers), predicting with `u_{k−1}` and updating with
 //!    `ȳ_k` (thesis Algorithms 5–7);
@@ -40,6 +40,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
+use crate::estimate::Estimator;
 use crate::scenario::Scenario;
 pub use cost::{cost, StudyCost};
 use divergence::Stop;
@@ -55,6 +56,12 @@ pub trait Observer: Sync {
     fn cancelled(&self) -> bool {
         false
     }
+    /// At reported step `k`, right after estimation: estimator `index` of the scenario
+    /// (`sc.estimators()[index]`) as it stands (`x̂_{k|k}` and its covariances) for the chunk of
+    /// runs `runs` (global indices: its run `r` is run `runs.start + r` of the study). Called
+    /// from the chunks' threads, and not after the estimator stopped; it cannot change a
+    /// result. The invariant tests use it to check every estimator's covariances.
+    fn on_estimator(&self, _k: usize, _index: usize, _runs: Range<usize>, _est: &dyn Estimator) {}
 }
 
 /// An observer that ignores everything.
@@ -489,8 +496,11 @@ fn run_chunk(
             index,
             now: report.get(index) == Some(&k),
         };
-        for lane in lanes.iter_mut().filter(|l| l.running()) {
+        for (e, lane) in lanes.iter_mut().enumerate().filter(|(_, l)| l.running()) {
             lane.step(at, &shared, &cx);
+            if at.now && lane.running() {
+                obs.on_estimator(k, e, range.clone(), lane.estimator());
+            }
         }
         index += usize::from(at.now);
         if !progress.after(k) {
@@ -519,10 +529,10 @@ impl<'a> Progress<'a> {
 
     /// After step k: `false` when the observer asks to stop.
     fn after(&mut self, k: usize) -> bool {
-        if k % Self::EVERY != 0 && k != self.steps {
+        if !k.is_multiple_of(Self::EVERY) && k != self.steps {
             return true;
         }
-        let done = if k % Self::EVERY == 0 {
+        let done = if k.is_multiple_of(Self::EVERY) {
             Self::EVERY
         } else {
             k % Self::EVERY
