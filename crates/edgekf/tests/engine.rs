@@ -334,9 +334,9 @@ fn a_finite_but_exploding_error_is_a_divergence() {
     s.sim.dt = 0.1;
     s.sim.allow_divergence = true;
     let sc = build(&s);
-    // L is the hexagon's diameter here (2 m): the noise and prior are smaller.
+    // L is the hexagon's diameter here (4 m): the noise, prior and walk are smaller.
     assert!(
-        (sc.length_scale() - 2.0).abs() < 1e-12,
+        (sc.length_scale() - 4.0).abs() < 1e-9,
         "{}",
         sc.length_scale()
     );
@@ -345,7 +345,7 @@ fn a_finite_but_exploding_error_is_a_divergence() {
         let Outcome::Diverged { step, cause, .. } = &e.outcome else {
             panic!("{}: {:?}", e.label, e.outcome);
         };
-        // |1 − Δt·λ| ≈ 4.2 per step: 10⁶ · 2 m is passed within some 10–40 steps, long
+        // |1 − Δt·λ| ≈ 4.2 per step: 10⁶ · 4 m is passed within some 10–40 steps, long
         // before f64 overflows (≈ 490 steps).
         assert!((5..=60).contains(step), "{}: step {step}", e.label);
         assert!(
