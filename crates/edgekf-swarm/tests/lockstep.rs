@@ -89,8 +89,13 @@ fn lockstep_over_zenoh_equals_the_engine() {
         let inputs = out.network.total("input");
         assert_eq!(inputs.lost, 0, "{tag}: {inputs:?}");
         assert_eq!(inputs.sent, inputs.received, "{tag}");
-        // 10 agents, 60 directed edges: each edge's input every step but the last.
-        assert_eq!(inputs.received, 60 * (sc.steps() as u64 - 1), "{tag}");
+        // 10 agents, 60 directed edges: each edge's input of every step (those of the last
+        // step, which no step takes, may still be on their way when the world stops).
+        let steps = sc.steps() as u64;
+        assert!(
+            (60 * (steps - 1)..=60 * steps).contains(&inputs.received),
+            "{tag}: {inputs:?}"
+        );
         if tag == "garkf" {
             let ex = out.network.total("exchange");
             assert_eq!(ex.received, 60 * sc.steps() as u64);
