@@ -6,7 +6,7 @@
 //! `c_v R_ij / T`: the same prediction with the known inputs (`û^j = 0` when the message is lost
 //! with the measurement), the same Joseph-form correction over the edges observed this step.
 //! Because the gain now depends on each run's data, every (filter, run) carries its own
-//! covariance and the sensitivities of [`super::adaptive::Bank`]; agent `i` learns
+//! covariance and the sensitivities of `adaptive::Bank`; agent `i` learns
 //! `θ_i = (ln c_w, ln c_v)` from the innovations of its own filters (its edges, or its joint
 //! filter), one Gauss–Newton step per time step.
 //!

@@ -44,7 +44,7 @@ pub trait Metric: Send + Sync {
         false
     }
     /// The metric's unit as a power of length (`est_error`: m → 1; `cov_trace`: m² → 2), for
-    /// the divergence bound ([`super::divergence`]); `None` for a metric without one.
+    /// the divergence bound (the module `sim::divergence`); `None` for a metric without one.
     fn length_power(&self) -> Option<i32> {
         None
     }
