@@ -32,7 +32,7 @@ use clarabel::solver::{
 };
 use nalgebra::{DMatrix, DVector};
 
-use super::ipm::Mode;
+use super::Mode;
 use super::{DesignError, SolverStatus, StressSpace};
 
 /// Result of a Clarabel solve.
