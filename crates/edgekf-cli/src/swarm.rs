@@ -56,6 +56,13 @@ pub struct NetArgs {
     /// its endpoints, mode and scouting).
     #[arg(long)]
     pub zenoh_config: Option<PathBuf>,
+    #[command(flatten)]
+    pub timing: Timing,
+}
+
+/// How the processes of a swarm step and wait (the same for every process).
+#[derive(Args, Debug, Clone)]
+pub struct Timing {
     /// Timing mode.
     #[arg(long, value_enum, default_value = "lockstep")]
     pub mode: ModeArg,
@@ -69,8 +76,8 @@ pub struct NetArgs {
     /// See --lossy.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(0..=60_000))]
     pub grace_ms: u64,
-    /// Agents may leave (a killed or crashed process): presence is tracked every step and the
-    /// filters read it (implied by --lossy, --mode realtime and `swarm --kill`).
+    /// Agents may leave (a killed or crashed process, e.g. `kill -9`): presence is tracked every
+    /// step and the filters read it (implied by --lossy, --mode realtime and `swarm --kill`).
     #[arg(long)]
     pub live: bool,
     /// The bound of every wait, in seconds: a world that never starts, an agent or neighbour
@@ -100,16 +107,16 @@ impl NetArgs {
     }
 
     fn mode(&self) -> Mode {
-        match self.mode {
+        match self.timing.mode {
             ModeArg::Lockstep => Mode::Lockstep,
             ModeArg::Realtime => Mode::Realtime {
-                period: Duration::from_millis(self.period_ms),
+                period: Duration::from_millis(self.timing.period_ms),
             },
         }
     }
 
     fn live(&self) -> bool {
-        self.live || self.lossy || self.mode == ModeArg::Realtime
+        self.timing.live || self.timing.lossy || self.timing.mode == ModeArg::Realtime
     }
 
     /// The flags that reproduce these settings in a child process.
@@ -124,18 +131,18 @@ impl NetArgs {
             "--mesh-hosts".into(),
             self.mesh_hosts.join(","),
             "--mode".into(),
-            format!("{:?}", self.mode).to_lowercase(),
+            format!("{:?}", self.timing.mode).to_lowercase(),
             "--period-ms".into(),
-            self.period_ms.to_string(),
+            self.timing.period_ms.to_string(),
             "--grace-ms".into(),
-            self.grace_ms.to_string(),
+            self.timing.grace_ms.to_string(),
             "--timeout-s".into(),
-            self.timeout_s.to_string(),
+            self.timing.timeout_s.to_string(),
         ];
         if let Some(c) = &self.zenoh_config {
             a.extend(["--zenoh-config".into(), c.display().to_string()]);
         }
-        for (on, flag) in [(self.lossy, "--lossy"), (self.live, "--live")] {
+        for (on, flag) in [(self.timing.lossy, "--lossy"), (self.timing.live, "--live")] {
             if on {
                 a.push(flag.into());
             }
@@ -202,25 +209,8 @@ pub struct SwarmArgs {
     /// Also write report.html.
     #[arg(long)]
     pub report: bool,
-    /// Timing mode.
-    #[arg(long, value_enum, default_value = "lockstep")]
-    pub mode: ModeArg,
-    /// The period of a step in real time, in ms.
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=60_000))]
-    pub period_ms: u64,
-    /// The mesh may lose messages (see `edgekf agent --help`).
-    #[arg(long)]
-    pub lossy: bool,
-    /// Agents may leave (a process killed from outside, e.g. `kill -9`): presence is tracked
-    /// every step (implied by --kill, --lossy and --mode realtime).
-    #[arg(long)]
-    pub live: bool,
-    /// How long a lossy lockstep agent waits for a neighbour's message, in ms.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(0..=60_000))]
-    pub grace_ms: u64,
-    /// The bound of every wait, in seconds.
-    #[arg(long, default_value_t = 20.0, value_parser = seconds)]
-    pub timeout_s: f64,
+    #[command(flatten)]
+    pub timing: Timing,
     /// A Zenoh configuration file (JSON5) for every process.
     #[arg(long)]
     pub zenoh_config: Option<PathBuf>,
@@ -261,10 +251,10 @@ pub fn agent(args: &AgentArgs) -> Result<ExitCode> {
         id: args.id,
         endpoints: args.net.endpoints(),
         mode: args.net.mode(),
-        lossy: args.net.lossy,
+        lossy: args.net.timing.lossy,
         live: args.net.live(),
-        grace: Duration::from_millis(args.net.grace_ms),
-        timeout: Duration::from_secs_f64(args.net.timeout_s),
+        grace: Duration::from_millis(args.net.timing.grace_ms),
+        timeout: Duration::from_secs_f64(args.net.timing.timeout_s),
     };
     run_agent(&sc, &o)?;
     Ok(ExitCode::SUCCESS)
@@ -284,7 +274,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
         endpoints: args.net.endpoints(),
         mode: args.net.mode(),
         live: args.net.live(),
-        timeout: Duration::from_secs_f64(args.net.timeout_s),
+        timeout: Duration::from_secs_f64(args.net.timing.timeout_s),
         after_ready: args.after_ready.clone(),
     };
     let lines = args.progress_lines;
@@ -447,7 +437,8 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
             &logs.join(format!("agent-{i}.log")),
         )?));
     }
-    let live = args.live || !kills.is_empty() || args.lossy || args.mode == ModeArg::Realtime;
+    let t = &args.timing;
+    let live = t.live || !kills.is_empty() || t.lossy || t.mode == ModeArg::Realtime;
     let run = supervise(&mut world, &mut agents, (&kills, live), &logs);
     for a in agents.iter_mut().flatten() {
         let _ = a.kill();
@@ -493,12 +484,10 @@ fn child_args(args: &SwarmArgs, n: usize) -> Result<(Vec<String>, Vec<Vec<String
         mesh_base_port: free_udp_base(n)?,
         mesh_hosts: vec!["127.0.0.1".into()],
         zenoh_config: args.zenoh_config.clone(),
-        mode: args.mode,
-        period_ms: args.period_ms,
-        lossy: args.lossy,
-        grace_ms: args.grace_ms,
-        live: args.live || !args.kill.is_empty(),
-        timeout_s: args.timeout_s,
+        timing: Timing {
+            live: args.timing.live || !args.kill.is_empty(),
+            ..args.timing.clone()
+        },
     };
     let scenario_arg = args.scenario.display().to_string();
     let mut common = net.to_args();
