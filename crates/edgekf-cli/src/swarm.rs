@@ -291,7 +291,13 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
     st.write("status.csv", status_csv(&outcome).as_bytes())?;
     st.write("network.csv", outcome.network.csv().as_bytes())?;
     crate::commit(st, prep, &id)?;
-    eprintln!("{}", summary_line(&sc, &outcome));
+    let summary = summary_line(&sc, &outcome);
+    if lines {
+        // The supervisor relays it (the world's stderr goes to its log).
+        println!("summary {summary}");
+    } else {
+        eprintln!("{summary}");
+    }
     eprintln!("wrote {}", args.out.display());
     Ok(crate::report(&sc, &outcome.results, &args.over))
 }
@@ -354,6 +360,10 @@ fn free_udp_base(n: usize) -> Result<u16> {
     bail!("no {n} consecutive free UDP ports on 127.0.0.1")
 }
 
+/// Zenoh's runtimes (RON, read by the `zenoh` crate at start-up) for a swarm on one machine.
+const ZENOH_RUNTIME_ONE_MACHINE: &str = "(rx:(worker_threads:1),tx:(max_blocking_threads:1),\
+    acc:(worker_threads:1),app:(worker_threads:1),net:(worker_threads:1))";
+
 /// A child process of the swarm, killed with the parent (PR_SET_PDEATHSIG) and on Ctrl-C.
 fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child> {
     let err = fs::File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
@@ -362,6 +372,11 @@ fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child
         .stdin(Stdio::null())
         .stdout(stdout)
         .stderr(err);
+    if std::env::var_os("ZENOH_RUNTIME").is_none() {
+        // N + 1 processes share this machine's cores: one thread per Zenoh runtime, not
+        // Zenoh's default pools (fewer wake-ups between threads; docs/agents.md).
+        cmd.env("ZENOH_RUNTIME", ZENOH_RUNTIME_ONE_MACHINE);
+    }
     // SAFETY: prctl(2) in the child before exec, async-signal-safe.
     unsafe {
         cmd.pre_exec(|| {
@@ -585,7 +600,10 @@ fn supervise(
                         }
                     }
                 }
-                None => println!("{line}"),
+                None => match line.strip_prefix("summary ") {
+                    Some(summary) => eprintln!("edgekf {summary}"),
+                    None => println!("{line}"),
+                },
             },
             Err(mpsc::RecvTimeoutError::Timeout) => {}
             Err(mpsc::RecvTimeoutError::Disconnected) => {

@@ -240,6 +240,7 @@ fn kill_9_from_outside_is_a_departure() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let launched = Instant::now();
     let needle = format!("{} --id 4 ", sc.display());
     let start = Instant::now();
     let pid = loop {
@@ -279,6 +280,13 @@ fn kill_9_from_outside_is_a_departure() {
         o.status.success(),
         "the swarm failed after a departure: {}",
         stderr(&o)
+    );
+    // Real time is a fixed clock: 1,500 steps of 2 ms take at least 3 s, however fast the
+    // agents answer.
+    assert!(
+        launched.elapsed() >= Duration::from_secs(3),
+        "{:?}",
+        launched.elapsed()
     );
     let rows = departed_rows(&out);
     assert_eq!(rows.len(), 1, "{rows:?}");

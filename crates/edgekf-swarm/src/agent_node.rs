@@ -432,10 +432,11 @@ impl Node {
                 self.sent_exchanges += 1;
                 self.await_mail(k, &expected, false)?;
             }
-            let out = {
+            let mut out = {
                 let exchanges = &self.exchanges;
                 self.agent.finish(|j| exchanges.get(j, k))
             };
+            finite_or_breakdown(&mut out);
             if ex_sent {
                 self.exchanges.close(k, &expected);
             }
@@ -597,5 +598,69 @@ impl Node {
         }
         let key = self.keys.status(self.me);
         let _ = self.put(true, &key, wire::encode(&self.id, &Status::Links(links)));
+    }
+}
+
+/// A lane whose input or report is not finite (its loop diverged) reports a breakdown, and
+/// its values go out as zeros: JSON has no NaN or infinity, and the world stops that lane as
+/// the simulator does.
+fn finite_or_breakdown(out: &mut Output) {
+    let (k, i) = (out.k, out.agent);
+    for lane in &mut out.lanes {
+        let mut values: Vec<&mut f64> = lane.u.iter_mut().collect();
+        if let Some(r) = &mut lane.report {
+            values.extend(r.estimates.iter_mut());
+            values.push(&mut r.cov_trace);
+            values.extend(r.quantities.iter_mut().flatten());
+        }
+        if values.iter().all(|v| v.is_finite()) {
+            continue;
+        }
+        for v in values {
+            if !v.is_finite() {
+                *v = 0.0;
+            }
+        }
+        lane.breakdown.get_or_insert_with(|| {
+            format!("agent {i}'s input or estimates are not finite at step {k} (its loop diverged)")
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use edgekf::agent::{LaneOutput, Report};
+
+    fn lane(u: f64, cov: f64) -> LaneOutput {
+        LaneOutput {
+            u: vec![u, 1.0],
+            report: Some(Report {
+                estimates: vec![0.5],
+                cov_trace: cov,
+                quantities: vec![None, Some(2.0)],
+            }),
+            breakdown: None,
+        }
+    }
+
+    #[test]
+    fn a_non_finite_output_becomes_a_breakdown_that_json_can_carry() {
+        let mut out = Output {
+            k: 7,
+            agent: 3,
+            lanes: vec![lane(1.0, 0.1), lane(f64::NAN, f64::INFINITY)],
+        };
+        finite_or_breakdown(&mut out);
+        assert_eq!(out.lanes[0], lane(1.0, 0.1), "a finite lane is left alone");
+        let broken = &out.lanes[1];
+        assert_eq!(broken.u, vec![0.0, 1.0]);
+        assert_eq!(broken.report.as_ref().map(|r| r.cov_trace), Some(0.0));
+        let why = broken.breakdown.as_deref().unwrap_or_default();
+        assert!(why.contains("agent 3") && why.contains("step 7"), "{why}");
+        let json = serde_json::to_string(&out).expect("encodes");
+        let back: Output =
+            serde_json::from_str(&json).expect("decodes: no null where a number goes");
+        assert_eq!(back, out);
     }
 }

@@ -263,6 +263,11 @@ impl Node<'_> {
         let mut departures = Vec::new();
         let (mut expected_total, mut misses) = (0u64, 0u64);
         for k in 1..=sc.steps() {
+            if let Mode::Realtime { period } = self.o.mode {
+                // A fixed clock: step k starts at (k − 1) periods, however early the outputs
+                // of step k − 1 came in (late ones are counted as they arrive).
+                self.wait_until(start + period * (k as u32 - 1), |_| false)?;
+            }
             for i in 0..self.n {
                 if world.present(i) && !self.alive.contains(&i) && self.ever_alive.contains(&i) {
                     // Its process ended during the last step: absent from this one on.

@@ -77,6 +77,17 @@ fn refusals_name_the_key() {
     assert!(m.contains("≥ 2") && m.contains("allow_divergence"), "{m}");
     s.sim.allow_divergence = true;
     build(&s);
+    // The leaders' distance law past its bound 2·Δt·k·λ_max(RᵀR) < 2: named with its keys.
+    let mut s = spec(0.001, 0.1, 10, 1, 1, names(&["rkf"]));
+    s.control.leader_gain = 1e4;
+    let (k, m) = refused(&s);
+    assert_eq!(k, "sim.dt");
+    assert!(
+        m.contains("leaders' distance law") && m.contains("control.leader_gain"),
+        "{m}"
+    );
+    s.sim.allow_divergence = true;
+    build(&s);
     // Variances f64 cannot carry.
     let mut s = spec(0.001, 0.1, 10, 1, 1, names(&["rkf"]));
     s.noise.sigma_w = 1e80;

@@ -916,6 +916,33 @@ fn lmax_followers(fw: &Framework) -> f64 {
     lff.symmetric_eigenvalues().max()
 }
 
+/// `λ_max(RᵀR)` of the leaders' clique (rows `(…, −z_abᵀ, …, z_abᵀ, …)` at the configuration);
+/// `None` with fewer than two leaders.
+fn leader_rigidity_lmax(fw: &Framework) -> Option<f64> {
+    let (l, d) = (fw.leaders(), fw.dim());
+    if l.len() < 2 {
+        return None;
+    }
+    let mut rtr = DMatrix::<f64>::zeros(l.len() * d, l.len() * d);
+    for a in 0..l.len() {
+        for b in a + 1..l.len() {
+            let z: Vec<f64> = (0..d)
+                .map(|c| fw.point(l[b])[c] - fw.point(l[a])[c])
+                .collect();
+            for (p, sp) in [(a, -1.0), (b, 1.0)] {
+                for (q, sq) in [(a, -1.0), (b, 1.0)] {
+                    for r in 0..d {
+                        for c in 0..d {
+                            rtr[(p * d + r, q * d + c)] += sp * sq * z[r] * z[c];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Some(rtr.symmetric_eigenvalues().max())
+}
+
 /// An upper bound of `λ_max(L_ff)` (Gershgorin: the largest absolute row sum), cheap for any N.
 fn lmax_followers_bound(fw: &Framework) -> f64 {
     let l = fw.laplacian();
@@ -934,6 +961,7 @@ fn lmax_followers_bound(fw: &Framework) -> f64 {
 impl Scenario {
     fn check_stability(&self, k: Keys) -> Result<(), ScenarioError> {
         self.check_law_stability(k)?;
+        self.check_leader_stability(k)?;
         let b = self.step_bound();
         if b >= 2.0 && !self.allow_divergence {
             return Err(err(
@@ -949,6 +977,42 @@ impl Scenario {
             ));
         }
         Ok(())
+    }
+
+    /// The leaders' distance law `u_i = −k Σ_j (‖z_ij‖² − d_ij²) z_ij` at its target: refused
+    /// when its discrete linearisation is unstable, unless `allow_divergence`.
+    fn check_leader_stability(&self, k: Keys) -> Result<(), ScenarioError> {
+        let Some(b) = self.leader_step_bound() else {
+            return Ok(());
+        };
+        if b < 2.0 || self.allow_divergence {
+            return Ok(());
+        }
+        let gain = self.control.leader_gain;
+        Err(err(
+            k.key("sim.dt"),
+            format!(
+                "2·Δt·k·λ_max(RᵀR) = {b:.3} ≥ 2: the leaders' distance law is unstable at its target (Δt = {}, k = {gain}, λ_max = {:.4} m² from the leaders' distances); lower Δt below {:.3e} or `control.leader_gain` below {:.3e}, or {} to show it",
+                self.model.dt(),
+                b / (2.0 * self.model.dt() * gain),
+                2.0 * self.model.dt() / b,
+                2.0 * gain / b,
+                k.allow_divergence()
+            ),
+        ))
+    }
+
+    /// `2 Δt k λ_max(RᵀR)` of the leaders' distance law (Krick et al.'s gradient law), `R` the
+    /// rigidity matrix of the leaders' clique at the framework's configuration: the Jacobian of
+    /// the law at its target is `−2k RᵀR`, so the discrete loop is stable below 2. `None` when
+    /// the leaders do not use that law.
+    pub fn leader_step_bound(&self) -> Option<f64> {
+        if !matches!(self.leaders, Some(LeaderMode::Distance { .. })) {
+            return None;
+        }
+        let fw = self.model.framework();
+        let lmax = leader_rigidity_lmax(fw)?;
+        Some(2.0 * self.model.dt() * self.control.leader_gain * lmax)
     }
 
     /// The discrete closed loop of the PI and varying-velocity laws (Li & Rajan Table 1; see
@@ -1140,6 +1204,11 @@ impl Scenario {
         if b >= 1.5 {
             hints.push(format!(
                 "the followers' step bound Δt·c·λ_max = {b:.3} is close to or past 2 (key `sim.dt`)"
+            ));
+        }
+        if let Some(b) = self.leader_step_bound().filter(|&b| b >= 1.5) {
+            hints.push(format!(
+                "the leaders' step bound 2·Δt·k·λ_max(RᵀR) = {b:.3} is close to or past 2 (keys `sim.dt`, `control.leader_gain`)"
             ));
         }
         let qmax = self.model.q().diagonal().max();
