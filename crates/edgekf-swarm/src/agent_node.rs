@@ -198,9 +198,7 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     events.liveliness(&world, &keys.alive_world())?;
     events.liveliness(&world, &keys.alive_agents())?;
     for &j in &neighbours {
-        events.subscribe(&mesh, &keys.input(j), Chan::Input)?;
-        events.subscribe(&mesh, &keys.exchange(j), Chan::Exchange)?;
-        events.subscribe(&mesh, &keys.hello(j), Chan::Hello)?;
+        events.subscribe(&mesh, &keys.mesh_of(j), Chan::Mesh)?;
     }
     let _token = world
         .liveliness()
@@ -304,7 +302,7 @@ impl Node {
                     self.exchanges.put(j, m.k, m, sent, ev.at);
                 }
             }
-            Chan::Output | Chan::Status => {}
+            Chan::Output | Chan::Status | Chan::Mesh => {}
         }
         Ok(())
     }
@@ -334,6 +332,7 @@ impl Node {
     fn meet(&mut self) -> Result<(), SwarmError> {
         let deadline = Instant::now() + self.o.timeout;
         let mut next_hello = Instant::now();
+        let mut next_declare = Instant::now() + Duration::from_secs(1);
         while !self.started {
             if let Some(e) = &self.stopped {
                 let why = e
@@ -356,8 +355,29 @@ impl Node {
                 }
                 next_hello = Instant::now() + Duration::from_millis(100);
             }
+            if Instant::now() >= next_declare {
+                // A subscription's declaration travels on the lossy mesh (UDP) and may be lost
+                // (a burst of 50 processes starting overflows loopback's socket buffers):
+                // declared again for every neighbour not heard yet.
+                self.redeclare_unheard()?;
+                next_declare = Instant::now() + Duration::from_secs(1);
+            }
             let until = next_hello.min(deadline);
             self.wait_until(until, |n| n.started)?;
+        }
+        Ok(())
+    }
+
+    fn redeclare_unheard(&mut self) -> Result<(), SwarmError> {
+        let unheard: Vec<usize> = self
+            .neighbours
+            .iter()
+            .filter(|j| !self.hellos.contains(j) && !self.departed.contains(j))
+            .copied()
+            .collect();
+        for j in unheard {
+            let key = self.keys.mesh_of(j);
+            self.events.subscribe(&self.mesh, &key, Chan::Mesh)?;
         }
         Ok(())
     }

@@ -19,8 +19,23 @@ pub(crate) enum Chan {
     Input,
     Exchange,
     Hello,
+    /// One subscription to everything a neighbour sends on the mesh (`agent/<j>/*`): its
+    /// input, exchange and hello, told apart by the key's last part. One declaration per
+    /// neighbour, so a hello heard proves its inputs will be heard too.
+    Mesh,
     /// A liveliness token appeared (`true`) or went (`false`).
     Alive(bool),
+}
+
+impl Chan {
+    /// The channel of a key of a [`Chan::Mesh`] subscription.
+    fn of_mesh_key(key: &str) -> Self {
+        match key.rsplit('/').next() {
+            Some("input") => Self::Input,
+            Some("exchange") => Self::Exchange,
+            _ => Self::Hello,
+        }
+    }
 }
 
 /// One delivery.
@@ -36,7 +51,8 @@ pub(crate) struct Event {
 pub(crate) struct Events {
     tx: Sender<Event>,
     rx: Receiver<Event>,
-    subs: Vec<Box<dyn std::any::Any + Send>>,
+    /// The live subscriptions by key expression (a re-declared one replaces its old self).
+    subs: std::collections::BTreeMap<String, Box<dyn std::any::Any + Send>>,
 }
 
 impl Events {
@@ -45,7 +61,7 @@ impl Events {
         Self {
             tx,
             rx,
-            subs: Vec::new(),
+            subs: std::collections::BTreeMap::new(),
         }
     }
 
@@ -60,9 +76,14 @@ impl Events {
         let sub = session
             .declare_subscriber(key.to_string())
             .callback(move |s| {
+                let key = s.key_expr().as_str().to_string();
                 let _ = tx.send(Event {
-                    chan,
-                    key: s.key_expr().as_str().to_string(),
+                    chan: if chan == Chan::Mesh {
+                        Chan::of_mesh_key(&key)
+                    } else {
+                        chan
+                    },
+                    key,
                     bytes: s.payload().to_bytes().into_owned(),
                     at: Instant::now(),
                 });
@@ -72,7 +93,8 @@ impl Events {
                 what: format!("subscribe to {key}"),
                 detail: e.to_string(),
             })?;
-        self.subs.push(Box::new(sub));
+        // Declared anew (its declaration travels on a lossy link): the old one goes after.
+        self.subs.insert(key.to_string(), Box::new(sub));
         Ok(())
     }
 
@@ -96,7 +118,7 @@ impl Events {
                 what: format!("follow the liveliness of {key}"),
                 detail: e.to_string(),
             })?;
-        self.subs.push(Box::new(sub));
+        self.subs.insert(format!("liveliness {key}"), Box::new(sub));
         Ok(())
     }
 

@@ -47,6 +47,12 @@ impl Keys {
         format!("{}/agent/{i}/exchange", self.prefix)
     }
 
+    /// Everything agent i sends on the mesh: input, exchange and hello (one subscription per
+    /// neighbour).
+    pub fn mesh_of(&self, i: usize) -> String {
+        format!("{}/agent/{i}/*", self.prefix)
+    }
+
     /// Agent i → its neighbours, over the mesh, before the start: "I am here".
     pub fn hello(&self, i: usize) -> String {
         format!("{}/agent/{i}/hello", self.prefix)
