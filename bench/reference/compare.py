@@ -4,7 +4,7 @@
 - cov_trace is deterministic: maximum relative difference over all common reported steps, and
   over the steady-state window.
 - est_error_sq, est_error and procrustes: steady-state means over a time window (default 15-30 s;
-  procrustes 25-30 s as in the README) and the z-score of the difference.  The two files use
+  procrustes 25-30 s as in the user guide) and the z-score of the difference.  The two files use
   different random numbers, so they agree only statistically.  Standard error: when file B's
   directory holds the reference's steady.json (per-run time averages over the window, whose spread
   across independent runs is the honest standard error of the windowed mean), that SE is used for

@@ -1,6 +1,6 @@
-"""The Python code of the READMEs runs as written: every ```python block of README.md and
-python/README.md, in a fresh namespace, from a scratch folder where `scenarios/` is the
-repository's."""
+"""The Python code of the READMEs and of the user guide runs as written: every ```python block
+of README.md, python/README.md and the guide's chapters (docs/book/src), in a fresh namespace,
+from a scratch folder where `scenarios/` is the repository's."""
 
 import os
 import re
@@ -14,14 +14,15 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 def blocks():
     out = []
-    for readme in (ROOT / "README.md", ROOT / "python" / "README.md"):
+    chapters = sorted((ROOT / "docs" / "book" / "src").rglob("*.md"))
+    for readme in (ROOT / "README.md", ROOT / "python" / "README.md", *chapters):
         for k, code in enumerate(BLOCK.findall(readme.read_text(encoding="utf-8"))):
             out.append(pytest.param(code, id=f"{readme.relative_to(ROOT)}#{k}"))
     return out
 
 
 def test_the_readmes_have_python_blocks():
-    assert len(blocks()) >= 2
+    assert len(blocks()) >= 3
 
 
 @pytest.mark.parametrize("code", blocks())

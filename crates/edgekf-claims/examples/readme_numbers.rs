@@ -1,4 +1,4 @@
-//! The README's numbers tables with their Monte Carlo standard errors, from the shipped
+//! The user guide's numbers tables (What is reproduced; thesis chapter 6) with their Monte Carlo standard errors, from the shipped
 //! scenarios at their own seeds (50 runs): `cargo run --release -p edgekf-claims --example
 //! readme_numbers`. Each number is the mean over runs of the per-run window mean (± its standard
 //! error over runs); a covariance trace that is the same in every run is exact.

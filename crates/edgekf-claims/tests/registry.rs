@@ -1,17 +1,86 @@
-//! The registry is well formed, and the verdicts written in the README and in `docs/claims.md`
-//! are the registry's: the README's citations must match `docs/claims.md` (instant), the claims
-//! settled at reduced size are re-measured here (a few seconds), and the full check runs in the
-//! ignored test (`cargo test --release -p edgekf-claims -- --ignored`, the same work as
-//! `edgekf claims`).
+//! The registry is well formed, and the verdicts written in the README, ARCHITECTURE.md, the
+//! user guide (`docs/book/src/`) and `docs/claims.md` are the registry's: the documents'
+//! citations must match `docs/claims.md` (instant), the claims settled at reduced size are
+//! re-measured here (a few seconds), and the full check runs in the ignored test (`cargo test
+//! --release -p edgekf-claims -- --ignored`, the same work as `edgekf claims`).
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::fs;
+use std::path::{Path, PathBuf};
 
 use edgekf_claims::readme::{citations, is_claim_id};
 use edgekf_claims::{evaluate, registry, Claim, Options, Paper, Silent, Size, Verdict};
 
 const README: &str = include_str!("../../../README.md");
 const DOCS: &str = include_str!("../../../docs/claims.md");
-const SECTION: &str = "## What the papers claim that we could not confirm";
+/// The heading of the guide's chapter that lists the claims we could not confirm.
+const SECTION: &str = "What the papers claim that we could not confirm";
+
+/// The prose that cites claims: the README, ARCHITECTURE.md and every chapter of the user
+/// guide (`docs/book/src/**/*.md`, without what they include: `docs/claims.md` is checked on
+/// its own), as (path relative to the repository, text).
+fn documents() -> Vec<(String, String)> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let mut entries: Vec<PathBuf> = fs::read_dir(dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "md") {
+                out.push(p);
+            }
+        }
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut paths = vec![root.join("README.md"), root.join("ARCHITECTURE.md")];
+    walk(&root.join("docs/book/src"), &mut paths);
+    assert!(paths.len() > 12, "the user guide's chapters: {paths:?}");
+    paths
+        .into_iter()
+        .map(|p| {
+            let text = fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            let name = p.strip_prefix(&root).unwrap_or(&p).display().to_string();
+            (name, text)
+        })
+        .collect()
+}
+
+/// The text under the heading `title` (of any level) in the one document that has it, up to
+/// the next heading of that level or above.
+fn section<'a>(documents: &'a [(String, String)], title: &str) -> &'a str {
+    let level = |line: &str| line.len() - line.trim_start_matches('#').len();
+    let is_title =
+        |line: &str| level(line) > 0 && line[level(line)..].strip_prefix(' ') == Some(title);
+    let holding: Vec<&(String, String)> = documents
+        .iter()
+        .filter(|(_, t)| t.lines().any(is_title))
+        .collect();
+    let names: Vec<&String> = holding.iter().map(|(n, _)| n).collect();
+    assert_eq!(
+        holding.len(),
+        1,
+        "exactly one document has the heading `{title}`: {names:?}"
+    );
+    let text = &holding[0].1;
+    let (mut at, mut start) = (0, None);
+    for l in text.split_inclusive('\n') {
+        let line = l.trim_end();
+        match start {
+            None if is_title(line) => start = Some((at + l.len(), level(line))),
+            Some((s, n))
+                if (1..=n).contains(&level(line)) && line[level(line)..].starts_with(' ') =>
+            {
+                return &text[s..at];
+            }
+            _ => {}
+        }
+        at += l.len();
+    }
+    &text[start.unwrap().0..]
+}
 
 /// Every id of `docs/claims.md` with its verdict (each exactly once).
 fn docs() -> BTreeMap<String, Verdict> {
@@ -64,7 +133,7 @@ fn registry_is_well_formed() {
 }
 
 #[test]
-fn docs_list_every_claim_and_the_readme_cites_their_verdicts() {
+fn docs_list_every_claim_and_the_guide_cites_their_verdicts() {
     let docs = docs();
     let ids: BTreeSet<String> = registry::claims()
         .iter()
@@ -75,23 +144,27 @@ fn docs_list_every_claim_and_the_readme_cites_their_verdicts() {
         listed, ids,
         "docs/claims.md must list exactly the registry's claims"
     );
-    let cited = citations(README).expect("the README cites claims with their verdicts");
-    assert!(cited.len() >= 20, "{} citations", cited.len());
-    for c in &cited {
-        let d = docs
-            .get(&c.id)
-            .unwrap_or_else(|| panic!("README line {}: unknown claim `{}`", c.line, c.id));
-        assert_eq!(
-            c.verdict, *d,
-            "README line {}: `{}` is cited as {} but the registry says {}",
-            c.line, c.id, c.verdict, d
-        );
+    let documents = documents();
+    let mut count = 0;
+    for (name, text) in &documents {
+        let cited = citations(text)
+            .unwrap_or_else(|e| panic!("{name} cites claims with their verdicts: {e}"));
+        count += cited.len();
+        for c in &cited {
+            let d = docs
+                .get(&c.id)
+                .unwrap_or_else(|| panic!("{name} line {}: unknown claim `{}`", c.line, c.id));
+            assert_eq!(
+                c.verdict, *d,
+                "{name} line {}: `{}` is cited as {} but the registry says {}",
+                c.line, c.id, c.verdict, d
+            );
+        }
     }
-    // The README's "could not confirm" section lists exactly the papers' claims that do not
+    assert!(count >= 20, "{count} citations");
+    // The guide's "could not confirm" chapter lists exactly the papers' claims that do not
     // agree.
-    let start = README.find(SECTION).expect("the README has the section");
-    let rest = &README[start + SECTION.len()..];
-    let section = &rest[..rest.find("\n## ").unwrap_or(rest.len())];
+    let section = section(&documents, SECTION);
     let in_section: BTreeSet<String> = citations(section)
         .unwrap()
         .into_iter()

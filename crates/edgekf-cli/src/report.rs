@@ -252,7 +252,7 @@ pub fn read_claims(dir: &Path) -> Result<Option<Vec<Claim>>> {
     Ok(Some(claims))
 }
 
-/// A JSON value as a table cell: numbers in the README's form, strings bare, others compact.
+/// A JSON value as a table cell: numbers in the guide's form, strings bare, others compact.
 fn cell(v: &Value) -> String {
     match v {
         Value::Null => "–".into(),

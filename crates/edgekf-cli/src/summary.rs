@@ -1,8 +1,8 @@
-//! The terminal summary of a study — what the README's tables show: per estimator, how it ended,
-//! the steady-state mean of every metric (over the reports in the second half of the horizon,
-//! averaged over the runs), the consistency ratio mean ε² / tr Σ over the same window, and the
-//! Procrustes error over the last sixth (the README's "floor"); as a table on stdout, or as JSON
-//! for scripts. The report page shows the same table.
+//! The terminal summary of a study — what the user guide's tables show: per estimator, how it
+//! ended, the steady-state mean of every metric (over the reports in the second half of the
+//! horizon, averaged over the runs), the consistency ratio mean ε² / tr Σ over the same window,
+//! and the Procrustes error over the last sixth (the guide's "floor"); as a table on stdout, or
+//! as JSON for scripts. The report page shows the same table.
 
 use std::fmt::Write as _;
 
@@ -231,7 +231,7 @@ pub fn summarise_means(
     }
 }
 
-/// `1.2345e-2`, `1.0000e0`: five significant digits, the form the README's tables use.
+/// `1.2345e-2`, `1.0000e0`: five significant digits, the form the guide's tables use.
 pub fn sci(v: f64) -> String {
     if v == 0.0 {
         "0".to_string()

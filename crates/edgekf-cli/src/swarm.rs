@@ -177,7 +177,7 @@ pub struct WorldArgs {
     #[arg(long)]
     pub force: bool,
     /// A shell command run once every agent is ready, before the first step (e.g. an nftables
-    /// rule that makes the mesh lossy: see the README's recipe).
+    /// rule that makes the mesh lossy: see docs/agents.md, "Real packet loss").
     #[arg(long)]
     pub after_ready: Option<String>,
     /// Print `progress K` on stdout after every step (for `edgekf swarm`).

@@ -1,9 +1,11 @@
-//! The README says what the commands print and do: its terminal example is the output of its
-//! command (rewritten by `EDGEKF_UPDATE_README=1 cargo test -p edgekf-cli --test readme`), its
-//! table of reproductions names every reproduction and scenario file, it names every key a
-//! framework file needs, its 1,000-agent recipe runs (and the CRKF in it is refused by the
-//! default limit), and `figures/` is ignored by git. The sections are found by markers
-//! (`<!-- terminal-example … -->`, …), so the README can be restructured around them.
+//! The README and the user guide say what the commands print and do: the README's terminal
+//! example is the output of its command (rewritten by `EDGEKF_UPDATE_README=1 cargo test -p
+//! edgekf-cli --test readme`; the guide includes it), the guide's table of reproductions names
+//! every reproduction and scenario file, it names every key a framework file needs, its
+//! 1,000-agent recipe runs (and the CRKF in it is refused by the default limit), and `figures/`
+//! is ignored by git. Each section is found by its marker (`<!-- terminal-example … -->`, …) in
+//! whichever of `README.md`, `ARCHITECTURE.md` and the guide's chapters (`docs/book/src/`) holds
+//! it — exactly one must — so the documents can be restructured around them.
 
 #[path = "scratch/mod.rs"]
 mod scratch;
@@ -17,27 +19,69 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn readme() -> String {
-    fs::read_to_string(root().join("README.md")).expect("README.md")
+/// The Markdown files a marker may be in: the README, ARCHITECTURE.md, and every chapter of the
+/// user guide (the guide's sources, `docs/book/src/**/*.md`).
+fn documents() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let mut entries: Vec<PathBuf> = fs::read_dir(dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "md") {
+                out.push(p);
+            }
+        }
+    }
+    let mut out = vec![root().join("README.md"), root().join("ARCHITECTURE.md")];
+    let book = root().join("docs/book/src");
+    let before = out.len();
+    walk(&book, &mut out);
+    assert!(
+        out.len() > before + 10,
+        "the user guide's chapters in {}",
+        book.display()
+    );
+    out
 }
 
-/// The text after `marker` up to `end`.
-fn section<'a>(text: &'a str, marker: &str, end: &str) -> &'a str {
-    let at = text
-        .find(marker)
-        .unwrap_or_else(|| panic!("README.md has no `{marker}`"));
+/// The one document that holds `marker`: (its path, its text).
+fn holding(marker: &str) -> (PathBuf, String) {
+    let found: Vec<(PathBuf, String)> = documents()
+        .into_iter()
+        .map(|p| {
+            let t = fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            (p, t)
+        })
+        .filter(|(_, t)| t.contains(marker))
+        .collect();
+    let names: Vec<String> = found.iter().map(|(p, _)| p.display().to_string()).collect();
+    assert_eq!(
+        found.len(),
+        1,
+        "`{marker}` must be in exactly one of the README, ARCHITECTURE.md and the guide's \
+         chapters: {names:?}"
+    );
+    found.into_iter().next().unwrap()
+}
+
+/// The text after `marker` up to `end`, in the document that holds `marker`.
+fn section(marker: &str, end: &str) -> String {
+    let (path, text) = holding(marker);
+    let at = text.find(marker).unwrap();
     let rest = &text[at + marker.len()..];
     let stop = rest
         .find(end)
-        .unwrap_or_else(|| panic!("README.md: `{end}` after `{marker}`"));
-    &rest[..stop]
+        .unwrap_or_else(|| panic!("{}: `{end}` after `{marker}`", path.display()));
+    rest[..stop].to_string()
 }
 
-/// The first fenced block after `marker`: (byte range of its body in `text`, body).
+/// The first fenced block after `marker` in `text`: (byte range of its body in `text`, body).
 fn block_after(text: &str, marker: &str) -> (std::ops::Range<usize>, String) {
-    let at = text
-        .find(marker)
-        .unwrap_or_else(|| panic!("README.md has no `{marker}`"));
+    let at = text.find(marker).unwrap_or_else(|| panic!("no `{marker}`"));
     let open = at + text[at..].find("```").expect("a fenced block");
     let body = open + text[open..].find('\n').expect("fence line") + 1;
     let close = body + text[body..].find("```").expect("closing fence");
@@ -58,8 +102,8 @@ fn ticked(text: &str) -> Vec<String> {
 #[test]
 fn terminal_example_is_what_its_command_prints() {
     let dir = Scratch::new("edgekf-readme", "terminal");
-    let text = readme();
     let marker = "<!-- terminal-example: edgekf run scenarios/eusipco.toml --out out";
+    let (path, text) = holding(marker);
     let (range, shown) = block_after(&text, marker);
     let o = Command::new(env!("CARGO_BIN_EXE_edgekf"))
         .args(["run", "scenarios/eusipco.toml", "--out"])
@@ -72,21 +116,22 @@ fn terminal_example_is_what_its_command_prints() {
     if std::env::var_os("EDGEKF_UPDATE_README").is_some() && printed != shown {
         let mut new = text.clone();
         new.replace_range(range, &printed);
-        fs::write(root().join("README.md"), new).unwrap();
-        eprintln!("README.md: terminal example rewritten");
+        fs::write(&path, new).unwrap();
+        eprintln!("{}: terminal example rewritten", path.display());
         return;
     }
     assert_eq!(
-        shown, printed,
-        "the README's terminal example is not what `edgekf run scenarios/eusipco.toml --out out` prints; \
-         EDGEKF_UPDATE_README=1 cargo test -p edgekf-cli --test readme rewrites it"
+        shown,
+        printed,
+        "the terminal example of {} is not what `edgekf run scenarios/eusipco.toml --out out` \
+         prints; EDGEKF_UPDATE_README=1 cargo test -p edgekf-cli --test readme rewrites it",
+        path.display()
     );
 }
 
 #[test]
 fn the_table_of_reproductions_names_every_one_and_every_scenario_file() {
-    let text = readme();
-    let table = section(&text, "<!-- reproductions", "<!-- /reproductions -->");
+    let table = section("<!-- reproductions", "<!-- /reproductions -->");
     let mut names = BTreeSet::new();
     let mut files = BTreeSet::new();
     for row in table.lines().filter(|l| l.starts_with("| `")) {
@@ -103,7 +148,10 @@ fn the_table_of_reproductions_names_every_one_and_every_scenario_file() {
         .lines()
         .map(|l| l.split('\t').next().unwrap().to_string())
         .collect();
-    assert_eq!(names, listed, "README table vs `edgekf reproduce --list`");
+    assert_eq!(
+        names, listed,
+        "the guide's table vs `edgekf reproduce --list`"
+    );
     // Every scenario file a reproduction simulates, its companions (such as
     // garkf-fig13-dense.toml) included.
     let mut want = BTreeSet::new();
@@ -111,13 +159,15 @@ fn the_table_of_reproductions_names_every_one_and_every_scenario_file() {
         want.insert(e.file.to_string());
         want.extend(e.companions.iter().map(|(f, _)| f.to_string()));
     }
-    assert_eq!(files, want, "README table vs the shipped scenario files");
+    assert_eq!(
+        files, want,
+        "the guide's table vs the shipped scenario files"
+    );
 }
 
 #[test]
-fn the_readme_names_every_key_a_framework_file_needs() {
-    let text = readme();
-    let keys = section(&text, "<!-- framework-keys -->", "<!-- /framework-keys -->");
+fn the_guide_names_every_key_a_framework_file_needs() {
+    let keys = section("<!-- framework-keys -->", "<!-- /framework-keys -->");
     let (needed, optional) = keys.split_once("optional").expect("needed, then optional");
     let needed: BTreeSet<String> = ticked(needed)
         .into_iter()
@@ -142,18 +192,22 @@ fn the_readme_names_every_key_a_framework_file_needs() {
             required.insert(k.clone());
         }
     }
-    assert_eq!(needed, required, "README: the keys a framework file needs");
+    assert_eq!(
+        needed, required,
+        "the guide: the keys a framework file needs"
+    );
     let all: BTreeSet<String> = obj.keys().cloned().collect();
     let rest: BTreeSet<String> = all.difference(&required).cloned().collect();
-    assert_eq!(optional, rest, "README: the optional keys");
+    assert_eq!(optional, rest, "the guide: the optional keys");
 }
 
-/// The Speed section's 1,000-agent run, from the command line, as the README writes it.
+/// The Speed chapter's 1,000-agent run, from the command line, as the guide writes it.
 #[test]
 fn the_scale_recipe_runs_and_the_crkf_in_it_is_refused() {
     let dir = Scratch::new("edgekf-readme", "scale");
-    let text = readme();
-    let (_, block) = block_after(&text, "<!-- scale-recipe -->");
+    let marker = "<!-- scale-recipe -->";
+    let (_, text) = holding(marker);
+    let (_, block) = block_after(&text, marker);
     // The block sits in a list item: two spaces of indentation.
     let script: String = block
         .lines()

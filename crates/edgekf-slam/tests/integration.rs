@@ -22,7 +22,7 @@ fn rk4_step_and_half_step_agree() {
         let sc = common::scenario(text);
         let full = simulate(&sc);
         let half = simulate_with_step(&sc, sc.step() / 2.0, 2 * sc.steps(), 2 * sc.output_stride());
-        // Claimed accuracy of the shipped h = 1e-3 s: 1e-9 m on every coordinate (README). With h ρ = 6e-3 (ρ = 6 /s) the RK4
+        // Claimed accuracy of the shipped h = 1e-3 s: 1e-9 m on every coordinate (user guide). With h ρ = 6e-3 (ρ = 6 /s) the RK4
         // global error is ~ (hρ)⁴ × O(10 m) ≈ 1e-8 at most; measured 4e-12.
         let d = max_diff(&full, &half);
         assert!(d < 1e-9, "{}: {d}", sc.name());

@@ -1,4 +1,4 @@
-//! The engine's contract: a checked scenario with the README's defaults, refusals that name the
+//! The engine's contract: a checked scenario with the documented defaults, refusals that name the
 //! key, faults shared by every estimator, target-tracking leaders, shards that merge into the
 //! unsharded results, and bit-identical results for any thread count for every estimator.
 
@@ -18,7 +18,8 @@ estimators = ["rkf"]
 preset = "hexagon"
 "#;
 
-/// The smallest documented scenario carries the README's defaults, and runs.
+/// The smallest documented scenario carries the defaults of the user guide's Scenario files,
+/// and runs.
 #[test]
 fn minimal_scenario_has_the_papers_defaults_and_runs() {
     let spec: ScenarioSpec = toml::from_str(MINIMAL).unwrap();

@@ -114,7 +114,7 @@ fn rkf_ca_reaches_the_riccati_fixed_point() {
 }
 
 /// The estimators beside a loop they do not steer (Li & Rajan §VI-B, Fig. 10): on the hexagon a
-/// loop closed on a permanently lost edge diverges whatever the estimator (see the README).
+/// loop closed on a permanently lost edge diverges whatever the estimator (see the user guide's GA-RKF chapter).
 #[test]
 fn a_lost_edge_grows_like_t5_without_geometry_and_stays_bounded_with_it() {
     let (steps, every) = (2000, 100);

@@ -19,7 +19,8 @@
 //!
 //! These tests build the exact discrete-time linearisation of the closed loop (agents, one
 //! estimate per directed edge, the leaders' distance law linearised at the formation) and check
-//! those numbers; the measured ones are in the README (thesis Fig. 4.6).
+//! those numbers; the measured ones are in the user guide (thesis Fig. 4.6, in its chapter on the
+//! slips in the papers).
 
 use edgekf::framework::Framework;
 use nalgebra::{DMatrix, Matrix2};

@@ -27,7 +27,7 @@
 //! geometry; a departed agent runs nothing (its state holds) and its neighbours neither measure
 //! nor hear it.
 //!
-//! # Corrections to Algorithm 1 (the GA-RKF issue; findings in the README's GA-RKF section)
+//! # Corrections to Algorithm 1 (the GA-RKF issue; findings in the user guide's GA-RKF chapter)
 //! - **Prediction every step.** Lines 17–19 correct from `Λ_{k−1}`, `γ̂_{k−1}` without a
 //!   prediction, contradicting §IV-D ("predictions … are run for all time steps"); here every
 //!   step predicts.

@@ -23,7 +23,7 @@ pub struct StudyCost {
 }
 
 /// Nanoseconds per normal draw and per floating-point operation (measured on this project's
-/// machine; see the README's speed section).
+/// machine; see the user guide's Speed chapter).
 const NS_PER_NORMAL: f64 = 6.0;
 const NS_PER_FLOP: f64 = 0.5;
 /// Nanoseconds per output row written (a `metrics.csv` row, or one agent's `paths.csv` row, and
