@@ -287,7 +287,9 @@ fn claims_section(claims: Option<&[Claim]>, id: &str) -> String {
     match claims {
         None => o.push_str(
             "<p class=\"note\">No claims checked for this study (no <code>claims.json</code> \
-             here; <code>edgekf claims … --json &gt; claims.json</code> writes one).</p>\n",
+             here). After <code>edgekf reproduce all --out ROOT</code>, \
+             <code>edgekf claims --out ROOT</code> writes one per simulation and \
+             <code>edgekf report ROOT</code> shows them.</p>\n",
         ),
         Some([]) => o.push_str(
             "<p class=\"note\">No claims checked for this study (claims.json is empty).</p>\n",

@@ -268,20 +268,7 @@ impl Node<'_> {
                 // of step k − 1 came in (late ones are counted as they arrive).
                 self.wait_until(start + period * (k as u32 - 1), |_| false)?;
             }
-            for i in 0..self.n {
-                if world.present(i) && !self.alive.contains(&i) && self.ever_alive.contains(&i) {
-                    // Its process ended during the last step: absent from this one on.
-                    if !self.gone.contains(&i) && self.o.live {
-                        self.gone.insert(i);
-                        world.depart(i);
-                        departures.push(Departure {
-                            agent: i,
-                            step: k,
-                            how: "its process ended: its Zenoh liveliness token went".into(),
-                        });
-                    }
-                }
-            }
+            self.depart_ended(&mut world, k, &mut departures);
             let sensing = world.sense();
             let expected: Vec<usize> = (0..self.n)
                 .filter(|&i| world.present(i) && !self.gone.contains(&i))
@@ -329,6 +316,25 @@ impl Node<'_> {
         let elapsed = start.elapsed().as_secs_f64();
         let rate = sc.steps() as f64 / elapsed.max(1e-9);
         Ok((world.results(), departures, rate, expected_total, misses))
+    }
+
+    /// An agent whose process ended during the last step is absent from step `k` on (a live
+    /// swarm only).
+    fn depart_ended(&mut self, world: &mut World, k: usize, departures: &mut Vec<Departure>) {
+        if !self.o.live {
+            return;
+        }
+        for i in 0..self.n {
+            let ended = !self.alive.contains(&i) && self.ever_alive.contains(&i);
+            if world.present(i) && ended && self.gone.insert(i) {
+                world.depart(i);
+                departures.push(Departure {
+                    agent: i,
+                    step: k,
+                    how: "its process ended: its Zenoh liveliness token went".into(),
+                });
+            }
+        }
     }
 
     /// After the stop: every agent still there reports its links (within 2 s).
