@@ -150,6 +150,10 @@ fn watch(fd: libc::c_int) {
         ""
     };
     let msg = format!("{lead}edgekf: interrupted (Ctrl-C): {line}\n");
+    // Another thread may be half-way through an `eprintln!` ("wrote DIR" without its newline
+    // yet: stderr is unbuffered, one line is several writes): its lock, held until the exit,
+    // makes this line start a line of its own.
+    let _stderr = std::io::stderr().lock();
     // SAFETY: write(2) to stderr of a valid buffer, then _exit(2) (no destructors, no atexit:
     // other threads may be anywhere).
     unsafe {
