@@ -211,6 +211,22 @@ impl Study {
         }
     }
 
+    /// Whether the study's reproduction counts stable runs (its sweep has a `stable` rule):
+    /// then divergence is judged run by run, as the reproduction's sweep does.
+    pub fn counts_stable_runs(&self) -> bool {
+        let Ok(e) = entry(self.reproduction) else {
+            return false;
+        };
+        let text = match self.edit.companion {
+            Some(k) => e.companions.get(k).map_or(e.text, |c| c.1),
+            None => e.text,
+        };
+        toml::from_str::<ScenarioSpec>(text)
+            .ok()
+            .and_then(|s| s.sweep)
+            .is_some_and(|s| s.stable.is_some())
+    }
+
     /// The seeds run at `size` (`seeds` overrides the study's own number at full size).
     pub fn seed_list(&self, base: u64, size: Size, seeds: Option<usize>) -> Vec<u64> {
         let n = match size {
@@ -258,6 +274,7 @@ impl Study {
                 let opt = sim::Options {
                     input_lags: 1,
                     input_from: 1,
+                    per_run_divergence: self.counts_stable_runs(),
                 };
                 let mut results = Vec::with_capacity(list.len());
                 for &s in &list {

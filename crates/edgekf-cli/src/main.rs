@@ -564,6 +564,7 @@ fn fit_ar(
     let opt = sim::Options {
         input_lags: order,
         input_from: from,
+        ..sim::Options::default()
     };
     let total = (sc.runs() * sc.steps()) as u64;
     let p = Progress::new(total, "fit-ar");

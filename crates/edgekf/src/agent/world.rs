@@ -56,7 +56,7 @@ impl<'a> World<'a> {
     pub fn new(sc: &'a Scenario) -> Self {
         let range = 0..1;
         let (shared, z0) = Shared::new(sc, range.clone());
-        let cx = Context::new(sc, &shared, &range);
+        let cx = Context::new(sc, &shared, &range, false);
         let fw = sc.framework();
         let (n, d) = (fw.agents(), fw.dim());
         let (nd, md) = (n * d, fw.graph().num_edges() * d);

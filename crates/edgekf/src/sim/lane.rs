@@ -32,10 +32,17 @@ pub(crate) struct Context<'a> {
     pub(crate) hint: String,
     /// The scenario's length scale, for the divergence bound.
     pub(crate) scale: f64,
+    /// Divergence judged run by run ([`super::Options::per_run_divergence`]).
+    pub(crate) per_run: bool,
 }
 
 impl<'a> Context<'a> {
-    pub(crate) fn new(sc: &'a Scenario, sh: &Shared<'_>, range: &Range<usize>) -> Self {
+    pub(crate) fn new(
+        sc: &'a Scenario,
+        sh: &Shared<'_>,
+        range: &Range<usize>,
+        per_run: bool,
+    ) -> Self {
         let fw = sc.framework();
         Self {
             fw,
@@ -49,6 +56,7 @@ impl<'a> Context<'a> {
             faults_active: sc.faults().any(),
             hint: sc.divergence_hint(),
             scale: sc.length_scale(),
+            per_run,
         }
     }
 }
@@ -82,6 +90,8 @@ pub(crate) struct Lane {
     /// Per metric, `[report · runs + run]`.
     values: Vec<Vec<f64>>,
     stop: Option<Stop>,
+    /// Per run of the chunk, whether it has diverged (only with per-run divergence).
+    diverged: Vec<bool>,
     observers: Vec<Box<dyn LaneObserver>>,
 }
 
@@ -130,6 +140,7 @@ impl Lane {
                 y: vec![0.0; md * runs],
             },
             stop: None,
+            diverged: vec![false; runs],
             observers,
         }
     }
@@ -152,6 +163,7 @@ impl Lane {
             metrics,
             values,
             observers,
+            diverged,
             ..
         } = self;
         EdgeStates {
@@ -199,7 +211,11 @@ impl Lane {
                 framework: cx.fw,
                 runs: cx.runs,
             };
-            self.stop = measure(metrics, values, &meas, at, cx);
+            self.stop = if cx.per_run {
+                measure_per_run(metrics, values, diverged, &meas, at, cx)
+            } else {
+                measure(metrics, values, &meas, at, cx)
+            };
             if self.stop.is_some() {
                 return;
             }
@@ -278,6 +294,57 @@ pub(crate) fn measure(
             let bound = (power, cx.scale);
             stop = divergence::out_of_bound(metric.name(), out, bound, at3, &cx.hint);
         }
+    }
+    stop
+}
+
+/// [`measure`] judging divergence run by run: a run past the bound is marked diverged and its
+/// metrics read `+∞` from this report on; a non-finite value of a diverged run is no stop. The
+/// stop when a run not yet diverged turns non-finite, or when every run has diverged.
+pub(crate) fn measure_per_run(
+    metrics: &[Box<dyn Metric>],
+    values: &mut [Vec<f64>],
+    diverged: &mut [bool],
+    meas: &Measure<'_>,
+    at: At,
+    cx: &Context<'_>,
+) -> Option<Stop> {
+    let mut stop = None;
+    let mut last = None;
+    for (metric, vals) in metrics.iter().zip(values.iter_mut()) {
+        let out = &mut vals[at.index * cx.runs..(at.index + 1) * cx.runs];
+        metric.measure(meas, out);
+        for (r, v) in out.iter_mut().enumerate() {
+            if diverged[r] {
+                *v = f64::INFINITY;
+                continue;
+            }
+            // One run at a time: its own index in the stop.
+            let at3 = (at.k, at.index, cx.first_run + r);
+            let one = std::slice::from_ref(v);
+            if stop.is_none() {
+                stop = divergence::non_finite(metric.name(), one, metric.partial(), at3, &cx.hint);
+            }
+            if let Some(power) = metric.length_power() {
+                let bound = (power, cx.scale);
+                if let Some(s) = divergence::out_of_bound(metric.name(), one, bound, at3, &cx.hint)
+                {
+                    diverged[r] = true;
+                    *v = f64::INFINITY;
+                    last = Some(s);
+                }
+            }
+        }
+    }
+    // Values measured before a later metric marked the run: +∞ as well.
+    for vals in values.iter_mut() {
+        let out = &mut vals[at.index * cx.runs..(at.index + 1) * cx.runs];
+        for (v, _) in out.iter_mut().zip(diverged.iter()).filter(|(_, &d)| d) {
+            *v = f64::INFINITY;
+        }
+    }
+    if diverged.iter().all(|&d| d) {
+        return stop.or(last);
     }
     stop
 }

@@ -80,7 +80,8 @@ pub enum RunError {
 /// How an estimator's part of a study ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outcome {
-    /// Every step ran and every metric is finite.
+    /// Every step ran and every metric is finite (with [`Options::per_run_divergence`], but
+    /// in the runs that diverged: their metrics read `+∞` from the report they passed the bound).
     Completed,
     /// Stopped at `step` (first seen in `run`): a numerical breakdown or non-finite values.
     Diverged {
@@ -242,6 +243,12 @@ pub struct Options {
     pub input_lags: usize,
     /// First step of the autocovariance window (1-based).
     pub input_from: usize,
+    /// Judge divergence run by run (studies that count stable runs, a sweep's `stable` rule):
+    /// a run whose error passes the divergence bound is diverged — its metrics read `+∞` from
+    /// that report on — and the other runs go on; the loop stops only when every run of its
+    /// chunk has diverged, or at a breakdown or a non-finite value of a run not yet diverged.
+    /// Off: the first diverged run stops the estimator's loop.
+    pub per_run_divergence: bool,
 }
 
 /// The runs of shard `i` (1-based) of `k`: contiguous ranges covering `0..runs`.
@@ -477,7 +484,7 @@ fn run_chunk(
     opt: Options,
 ) -> Option<Chunk> {
     let (mut shared, z0) = Shared::new(sc, range.clone());
-    let cx = Context::new(sc, &shared, &range);
+    let cx = Context::new(sc, &shared, &range, opt.per_run_divergence);
     let record = range
         .contains(&sc.paths_run())
         .then(|| sc.paths_run() - range.start);

@@ -12,7 +12,8 @@
 //! - `stable_share`: the share of runs that stay stable ([`crate::scenario::StableSpec`]): the
 //!   tracking error δ is finite at every reported step and its mean over the `final` window is
 //!   at most `factor` times its mean over the `reference` window. An estimator that stopped has
-//!   no stable run.
+//!   no stable run. Such a sweep judges divergence run by run ([`Options::per_run_divergence`]):
+//!   a run past the divergence bound is unstable and the others go on.
 //!
 //! The scenario as written is run too (or taken from the value equal to it), for `metrics.csv`.
 
@@ -217,8 +218,13 @@ pub fn run_in(
     let mut base = None;
     let mut points = Vec::new();
     let mut summary = Vec::new();
+    // A sweep that counts stable runs judges divergence run by run.
+    let opt = Options {
+        per_run_divergence: sc.sweep().is_some_and(|s| s.stable.is_some()),
+        ..Options::default()
+    };
     for (k, p) in sc.sweep_points_in(registry)?.into_iter().enumerate() {
-        let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, Options::default())?;
+        let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, opt)?;
         summarise(sc, k, &res, &mut summary);
         if base.is_none()
             && serde_json::to_string(&p.scenario.to_resolved()).unwrap_or_default() == base_key
@@ -233,7 +239,7 @@ pub fn run_in(
     }
     let base = match base {
         Some(b) => b,
-        None => run_range(&base_sc, 0..base_sc.runs(), obs, Options::default())?,
+        None => run_range(&base_sc, 0..base_sc.runs(), obs, opt)?,
     };
     Ok(SweepResults {
         parameter: sc.sweep().map(|s| s.parameter.clone()).unwrap_or_default(),
