@@ -24,7 +24,8 @@
 //!   quotient of two independent measurements; or neither (nothing to measure: the rule says
 //!   why).
 //! - **Rule** ([`Rule`]): `rule.below = x`, `rule.above = x`, `rule.at_most = x`,
-//!   `rule.within = { lo, hi }`, `rule.near = { target, rel }` (within `target·(1 ± rel)`),
+//!   `rule.within = { lo, hi }`, `rule.outside = { lo, hi }`, `rule.near = { target, rel }`
+//!   (within `target·(1 ± rel)`),
 //!   `rule.factor = { target, factor }` (within `[target/factor, target·factor]`),
 //!   `rule.matches = { printed, rounding }`, `rule.not_checkable = "why"`.
 //! - **Windows** are `[from, to]` in seconds or a name of
@@ -118,6 +119,7 @@ enum RuleEntry {
     Above(f64),
     AtMost(f64),
     Within { lo: f64, hi: f64 },
+    Outside { lo: f64, hi: f64 },
     Near { target: f64, rel: f64 },
     Factor { target: f64, factor: f64 },
     Matches { printed: f64, rounding: f64 },
@@ -131,6 +133,7 @@ impl From<RuleEntry> for Rule {
             RuleEntry::Above(x) => Rule::Above(x),
             RuleEntry::AtMost(x) => Rule::AtMost(x),
             RuleEntry::Within { lo, hi } => Rule::Within { lo, hi },
+            RuleEntry::Outside { lo, hi } => Rule::Outside { lo, hi },
             RuleEntry::Near { target, rel } => Rule::near(target, rel),
             RuleEntry::Factor { target, factor } => Rule::factor(target, factor),
             RuleEntry::Matches { printed, rounding } => Rule::Matches { printed, rounding },

@@ -74,6 +74,14 @@ pub enum Rule {
         /// Upper end.
         hi: f64,
     },
+    /// The paper says the value is unlike a range (e.g. "unstable" against a rate called
+    /// constant within ± 20 %): agrees when `[value − 3 SE, value + 3 SE]` misses `[lo, hi]`.
+    Outside {
+        /// Lower end of the range.
+        lo: f64,
+        /// Upper end.
+        hi: f64,
+    },
     /// A number the README prints, `printed` (to ± `rounding`, half a unit of its last digit):
     /// agrees when `|value − printed| ≤ 3 SE + rounding`.
     Matches {
@@ -132,6 +140,7 @@ impl Rule {
             Rule::Above(x) => e.value - m > x,
             Rule::AtMost(x) => e.value + m <= x,
             Rule::Within { lo, hi } => e.value - m >= lo && e.value + m <= hi,
+            Rule::Outside { lo, hi } => e.value + m < lo || e.value - m > hi,
             Rule::Matches { printed, rounding } => (e.value - printed).abs() <= m + rounding,
             Rule::NotCheckable(_) => unreachable!(),
         };
@@ -152,6 +161,9 @@ impl Rule {
             Rule::Above(x) => format!("> {} by {SIGMAS} SE", num(*x)),
             Rule::AtMost(x) => format!("≤ {}", num(*x)),
             Rule::Within { lo, hi } => format!("± {SIGMAS} SE inside [{}, {}]", num(*lo), num(*hi)),
+            Rule::Outside { lo, hi } => {
+                format!("± {SIGMAS} SE outside [{}, {}]", num(*lo), num(*hi))
+            }
             Rule::Matches { printed, rounding } => {
                 format!(
                     "{} (± {}) within {SIGMAS} SE",
@@ -183,6 +195,16 @@ mod tests {
 
     fn est(value: f64, se: f64) -> Option<Estimate> {
         Some(Estimate { value, se })
+    }
+
+    #[test]
+    fn outside_needs_the_whole_interval_off_the_range() {
+        let r = Rule::Outside { lo: 0.8, hi: 1.2 };
+        assert_eq!(r.judge(est(0.5, 0.05)).0, Verdict::Agrees);
+        assert_eq!(r.judge(est(1.5, 0.05)).0, Verdict::Agrees);
+        // 0.7 ± 0.05: its interval reaches into the range.
+        assert_eq!(r.judge(est(0.7, 0.05)).0, Verdict::Differs);
+        assert_eq!(r.judge(est(1.0, 0.0)).0, Verdict::Differs);
     }
 
     #[test]
