@@ -233,11 +233,12 @@ pub fn settle() {
 /// # Errors
 /// As [`Staged::new`].
 pub fn stage(dir: &Path) -> Result<Staged> {
-    {
-        let mut log = log();
-        let existed = dir.exists();
-        log.staging.push((dir.to_path_buf(), existed));
-    }
+    // The log is held while the staging directory is created: a Ctrl-C then either finds it
+    // (and removes it) or holds the log first, and this never creates it (a staging directory
+    // created after the watcher's cleanup was left behind: the interrupt stress test).
+    let mut log = log();
+    let existed = dir.exists();
+    log.staging.push((dir.to_path_buf(), existed));
     Ok(Staged::new(dir)?)
 }
 

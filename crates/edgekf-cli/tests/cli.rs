@@ -535,3 +535,26 @@ fn sweep_series_keeps_the_listed_metrics_and_nothing_else() {
     );
     let _ = fs::remove_dir_all(&dir);
 }
+
+/// A paired-ratio plot names a reference that is not an estimator: refused by key, with the
+/// labels there are.
+#[test]
+fn a_ratio_plot_to_an_unknown_estimator_is_refused() {
+    let shipped = fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/eusipco.toml"),
+    )
+    .unwrap();
+    assert!(
+        shipped.contains("ratio_to = \"mle\""),
+        "the shipped Fig. 5.3 pair"
+    );
+    let e = fails(
+        "ratio-unknown",
+        &shipped.replace("ratio_to = \"mle\"", "ratio_to = \"mel\""),
+        &[],
+    );
+    assert!(
+        e.contains(".ratio_to") && e.contains("`mel`") && e.contains("\"mle\""),
+        "{e}"
+    );
+}

@@ -214,6 +214,12 @@ pub fn figure(spec: &PlotSpec, sc: &Scenario, res: &Results) -> Figure {
     match spec {
         PlotSpec::Metric {
             metric,
+            log_x,
+            ratio_to: Some(reference),
+            ..
+        } => ratio_figure(spec, metric, reference, *log_x, res, &labels),
+        PlotSpec::Metric {
+            metric,
             log_y,
             log_x,
             inset,
@@ -282,6 +288,84 @@ fn divergence_notes(res: &Results, labels: &[String]) -> Vec<String> {
             Outcome::Completed => None,
         })
         .collect()
+}
+
+/// Each estimator's `metric` over `reference`'s, paired run by run: the ratio in every run at
+/// every report, then its mean ± 1 standard error over the runs, with the line of equality.
+fn ratio_figure(
+    spec: &PlotSpec,
+    metric: &str,
+    reference: &str,
+    log_x: bool,
+    res: &Results,
+    labels: &[String],
+) -> Figure {
+    let t = times(res);
+    let runs = res.runs.len();
+    let (ylabel, _) = metric_axis(metric);
+    let x_axis = if log_x {
+        Axis::log("time t", "s").tight()
+    } else {
+        time_axis(res)
+    };
+    let base = spec.legend_text(reference).to_string();
+    let mut panel = Panel::new(
+        x_axis,
+        Axis::linear(format!("{ylabel}, over {base}'s in the same run"), ""),
+    );
+    panel.coincide_tolerance = None;
+    let valid = |l: &str| res.estimator(l).map_or(0, |e| e.valid);
+    let (Some(den), nr) = (res.values(reference, metric), valid(reference)) else {
+        return Figure::single(title_of(spec, metric), panel)
+            .with_note(format!("No `{metric}` for {reference}."));
+    };
+    for l in labels.iter().filter(|l| *l != reference) {
+        let Some(num) = res.values(l, metric) else {
+            continue;
+        };
+        let n = nr.min(valid(l));
+        let (mut mean, mut lo, mut hi) = (Vec::new(), Vec::new(), Vec::new());
+        for k in 0..n {
+            let r: Vec<f64> = (0..runs)
+                .map(|j| num[k * runs + j] / den[k * runs + j])
+                .collect();
+            let r: Vec<f64> = r.into_iter().filter(|v| v.is_finite()).collect();
+            let m = r.iter().sum::<f64>() / r.len().max(1) as f64;
+            let se = if r.len() > 1 {
+                let var = r.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (r.len() - 1) as f64;
+                (var / r.len() as f64).sqrt()
+            } else {
+                0.0
+            };
+            mean.push(m);
+            lo.push(m - se);
+            hi.push(m + se);
+        }
+        let c = Curve::new(spec.legend_text(l).to_string(), t[..n].to_vec(), mean)
+            .with_style(Style::line().colour(colour_of(res, l)))
+            .with_band(lo, hi);
+        panel.curves.push(c);
+    }
+    let (t0, t1) = (
+        t.first().copied().unwrap_or(0.0),
+        t.last().copied().unwrap_or(1.0),
+    );
+    panel.curves.push(
+        Curve::new("equal (ratio 1)", vec![t0, t1], vec![1.0, 1.0]).with_style(
+            Style::line()
+                .colour(palette::MARKER)
+                .dash(Dash::Dashed)
+                .width(1.0),
+        ),
+    );
+    let mut notes = vec![format!(
+        "The ratio in each of the {runs} runs (the estimators share each run's draws), then its \
+         mean ± 1 standard error over the runs (std / √{runs}): below 1, lower than {base}."
+    )];
+    notes.extend(divergence_notes(res, labels));
+    let mut fig = Figure::single(title_of(spec, metric), panel);
+    fig.notes = notes;
+    fig
 }
 
 fn metric_figure(
@@ -380,20 +464,6 @@ fn metric_figure(
     let mut fig = if groups.is_empty() {
         Figure::single(title, panel)
     } else {
-        for g in &groups {
-            let of = if log_y { "" } else { " of the axis span" };
-            notes.push(format!(
-                "{} coincide to within {}{of} ({} px) at {:.0} % of the reported times (at most \
-                 {}{of} apart): dashes and markers tell them apart; the lower panel shows their \
-                 differences.",
-                coincide::group_name(&g.group.labels),
-                pct(g.group.tolerance),
-                SAME_PX,
-                100.0 * g.share,
-                pct(g.group.max_deviation),
-            ));
-        }
-        let mut f = Figure::new(title).with_size(1100, 720 + 330 * groups.len() as u32);
         let diffs: Vec<Panel> = groups
             .iter()
             .map(|g| {
@@ -405,6 +475,32 @@ fn metric_figure(
                 d
             })
             .collect();
+        for (g, d) in groups.iter().zip(&diffs) {
+            let of = if log_y { "" } else { " of the axis span" };
+            // The largest difference the lower panel draws, in its own terms (relative to the
+            // first curve on a log axis), so that the note and the panel say the same number.
+            let largest = d
+                .curves
+                .iter()
+                .flat_map(|c| c.y.iter())
+                .filter(|v| v.is_finite())
+                .fold(0.0_f64, |m, v| m.max(v.abs()));
+            let shown = if log_y {
+                pct(largest)
+            } else {
+                format!("{largest:.3e}{}", unit_suffix(&panel.y_axis.unit))
+            };
+            notes.push(format!(
+                "{} coincide to within {}{of} ({} px) at {:.0} % of the reported times: dashes \
+                 and markers tell them apart; the lower panel shows their differences (largest \
+                 {shown}).",
+                coincide::group_name(&g.group.labels),
+                pct(g.group.tolerance),
+                SAME_PX,
+                100.0 * g.share,
+            ));
+        }
+        let mut f = Figure::new(title).with_size(1100, 720 + 330 * groups.len() as u32);
         f.panels.push(panel);
         f.panels.extend(diffs);
         f
@@ -759,6 +855,40 @@ mod tests {
             .any(|c| c.label.contains("û^{j} = 0")));
     }
 
+    /// Thesis Fig. 5.3's paired companion: each curve is the mean over the runs of the per-run
+    /// ratio, its band ± 1 standard error; the reference itself is not drawn.
+    #[test]
+    fn a_ratio_plot_draws_the_paired_ratio_per_run() {
+        let (sc, res) = small("eusipco.toml");
+        let spec = sc
+            .plots()
+            .iter()
+            .find(|p| p.file() == "thesis-fig5.3-ratio")
+            .expect("shipped")
+            .clone();
+        let (fig, rep) = draw(&spec, &sc, &res);
+        assert_eq!(rep.panels.len(), 1);
+        let p = &fig.panels[0];
+        let labels: Vec<&str> = p.curves.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(labels, ["rkf", "jrkf", "crkf", "equal (ratio 1)"]);
+        let runs = res.runs.len();
+        let (num, den) = (
+            res.values("rkf", "procrustes").unwrap(),
+            res.values("mle", "procrustes").unwrap(),
+        );
+        let k = res.steps.len() - 1;
+        let r: Vec<f64> = (0..runs)
+            .map(|j| num[k * runs + j] / den[k * runs + j])
+            .collect();
+        let m = r.iter().sum::<f64>() / runs as f64;
+        let sd = (r.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (runs - 1) as f64).sqrt();
+        let c = &p.curves[0];
+        assert!((c.y[k] - m).abs() <= 1e-12 * m.abs(), "{} vs {m}", c.y[k]);
+        let (lo, hi) = c.band.as_ref().unwrap();
+        let se = sd / (runs as f64).sqrt();
+        assert!((hi[k] - lo[k] - 2.0 * se).abs() <= 1e-12, "band ± 1 SE");
+    }
+
     #[test]
     fn an_inset_is_drawn_where_asked() {
         let (sc, res) = small("thesis-fig4.8.toml");
@@ -784,6 +914,7 @@ mod tests {
             inset: Some([0.0, 0.5]),
             estimators,
             legend,
+            ratio_to: None,
         };
         let (_, rep) = draw(&spec, &sc, &res);
         assert!(rep.panels[0].inset.is_some());
@@ -865,5 +996,14 @@ mod group_tests {
             500.0,
         );
         assert!(g.is_empty());
+    }
+}
+
+/// " unit" for a number in a note, or nothing.
+fn unit_suffix(unit: &str) -> String {
+    if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
     }
 }

@@ -5,7 +5,7 @@
 //!   per estimator or per sweep value, bands ±1σ over the runs or min–max over the agents, and
 //!   `tr Θ*(t)` of the maneuver as a reference (Figs 8, 10, 11 left, 12);
 //! - `summary`: a sweep summary against the swept value, with the same summary of companion
-//!   scenarios (Figs 11 right, 13b);
+//!   scenarios and then each study's graph beside it (Figs 11 right, 13a–b);
 //! - `indicator`: the convergence indicator ψ against the tracking error δ with Theorem 1's
 //!   bound `c̄ δ + b̄` (Fig. 9).
 
@@ -352,7 +352,13 @@ fn summary(
             }
             let y: Vec<f64> = vals.iter().map(|v| v.0).collect();
             let name = if several {
-                format!("{}: {l}", ssc.name())
+                // Studies told apart by their graphs (Fig. 13: sparse and dense), not file names.
+                let g = ssc.framework().graph();
+                let n = ssc.framework().agents();
+                format!(
+                    "{l}, mean degree {:.1}",
+                    2.0 * g.links().len() as f64 / n as f64
+                )
             } else {
                 l.clone()
             };
@@ -431,7 +437,93 @@ fn summary(
             );
         }
     }
-    Ok(Figure::single(title, panel).with_note(note))
+    let drawn_over = overlaps(&panel.curves, 0.05);
+    let mut fig = if several {
+        // The graphs compared (Fig. 13a), beside the summary (Fig. 13b).
+        let mut f = Figure::new(title).with_size(1700, 620);
+        f.panels = studies.iter().map(|(_, ssc, _)| graph_panel(ssc)).collect();
+        let b = if share {
+            "(b) the share of runs that stay stable"
+        } else {
+            "(b) against the swept value"
+        };
+        f.panels.push(panel.with_title(b));
+        f.columns = f.panels.len();
+        f.with_note(note)
+    } else {
+        Figure::single(title, panel).with_note(note)
+    };
+    fig.notes.extend(drawn_over);
+    Ok(fig)
+}
+
+/// A study's framework: the agents at their configuration, its links, the leaders marked.
+fn graph_panel(sc: &Scenario) -> Panel {
+    let fw = sc.framework();
+    let (n, d) = (fw.agents(), fw.dim());
+    let at = |i: usize, c: usize| if c < d { fw.point(i)[c] } else { 0.0 };
+    let links = fw.graph().links();
+    let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m")).with_title(format!(
+        "(a) {n} agents, {} links (mean degree {:.1})",
+        links.len(),
+        2.0 * links.len() as f64 / n as f64
+    ));
+    p.equal_aspect = true;
+    p.coincide_tolerance = None;
+    // Thin lines: a dense graph has over a thousand.
+    let width = if links.len() > 200 { 0.4 } else { 1.0 };
+    for (k, &(i, j)) in links.iter().enumerate() {
+        let name = if k == 0 { "link" } else { "" };
+        p.curves.push(
+            Curve::new(name, vec![at(i, 0), at(j, 0)], vec![at(i, 1), at(j, 1)])
+                .with_style(Style::line().colour(crate::palette::LINK).width(width)),
+        );
+    }
+    let leaders = fw.leaders();
+    let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n)
+        .filter(|i| !leaders.contains(i))
+        .map(|i| (at(i, 0), at(i, 1)))
+        .unzip();
+    p.curves.push(Curve::new("follower", fx, fy).with_style(
+        Style::markers(Marker::new(Shape::Circle, 6.0)).colour(crate::palette::MARKER),
+    ));
+    let (lx, ly): (Vec<f64>, Vec<f64>) = leaders.iter().map(|&i| (at(i, 0), at(i, 1))).unzip();
+    p.curves.push(Curve::new("leader", lx, ly).with_style(
+        Style::markers(Marker::new(Shape::TriangleUp, 9.0)).colour(crate::palette::LEADER),
+    ));
+    p
+}
+
+/// Notes for curves drawn over one another: each curve within `rel` of an earlier one at at
+/// least half the values where both are finite (and at two or more), with those values.
+fn overlaps(curves: &[Curve], rel: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    for (j, b) in curves.iter().enumerate() {
+        for a in &curves[..j] {
+            let both: Vec<(f64, bool)> =
+                a.x.iter()
+                    .zip(a.y.iter().zip(&b.y))
+                    .filter(|(_, (p, q))| p.is_finite() && q.is_finite())
+                    .map(|(x, (p, q))| (*x, (p - q).abs() <= rel * p.abs().max(q.abs())))
+                    .collect();
+            let close: Vec<String> = both
+                .iter()
+                .filter(|c| c.1)
+                .map(|c| c.0.to_string())
+                .collect();
+            if close.len() >= 2 && 2 * close.len() >= both.len() {
+                out.push(format!(
+                    "{} lies within {:.0} % of {} at {} (drawn over it).",
+                    b.label,
+                    100.0 * rel,
+                    a.label,
+                    close.join(", ")
+                ));
+                break;
+            }
+        }
+    }
+    out
 }
 
 fn indicator(
@@ -464,14 +556,16 @@ fn indicator(
     let p = pick(&psi.mean, &idx);
     let d = pick(&delta.mean, &idx);
     let bound: Vec<f64> = d.iter().map(|v| c * v + b).collect();
-    let left = Panel::new(Axis::linear("time t", "s").tight(), Axis::log("", ""))
-        .with_title("ψ and δ over time")
-        .with_curve(Curve::new("E[ψ] (mean over agents)", x.clone(), p.clone()))
-        .with_curve(Curve::new("E[δ] (m²)", x.clone(), d.clone()))
-        .with_curve(
-            Curve::new("Theorem 1: c̄ E[δ] + b̄", x, bound)
-                .with_style(Style::line().dash(Dash::Dashed)),
-        );
+    let left = Panel::new(
+        Axis::linear("time t", "s").tight(),
+        Axis::log("E[ψ] (no unit); E[δ] and the bound (m²)", ""),
+    )
+    .with_title("ψ and δ over time")
+    .with_curve(Curve::new("E[ψ] (mean over agents)", x.clone(), p.clone()))
+    .with_curve(Curve::new("E[δ] (m²)", x.clone(), d.clone()))
+    .with_curve(
+        Curve::new("Theorem 1: c̄ E[δ] + b̄", x, bound).with_style(Style::line().dash(Dash::Dashed)),
+    );
     let cd: Vec<f64> = d.iter().map(|v| c * v).collect();
     let pb: Vec<f64> = p.iter().map(|v| v - b).collect();
     let (lo, hi) = cd

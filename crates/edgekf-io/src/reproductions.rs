@@ -229,7 +229,7 @@ pub const ENTRIES: &[Entry] = &[
         "thesis-fig5.3",
         "thesis Fig. 5.3: Procrustes error",
         FILTERS,
-        ["thesis-fig5.3"]
+        ["thesis-fig5.3", "thesis-fig5.3-ratio"]
     ),
     entry!(
         "thesis-fig6.1",

@@ -24,7 +24,7 @@ fn fig13_sparse(runs: usize) -> (Scenario, StableSpec) {
     let sw = spec.sweep.as_mut().expect("a sweep");
     sw.values.retain(|v| v.as_f64() == Some(0.1));
     assert_eq!(sw.values.len(), 1, "the shipped sweep has 10 %");
-    let rule = sw.stable.clone().expect("a stable rule");
+    let rule = sw.stable.expect("a stable rule");
     (
         Scenario::from_spec(&spec, fw.as_ref()).expect("valid"),
         rule,

@@ -1073,7 +1073,22 @@ impl Scenario {
                 ));
             }
             match p {
-                PlotSpec::Metric { metric, inset, .. } => {
+                PlotSpec::Metric {
+                    metric,
+                    inset,
+                    ratio_to,
+                    ..
+                } => {
+                    if let Some(r) = ratio_to {
+                        if !self.estimators.iter().any(|e| e.label() == r) {
+                            let labels: Vec<&str> =
+                                self.estimators.iter().map(|e| e.label()).collect();
+                            return Err(err(
+                                &format!("{key}.ratio_to"),
+                                format!("`{r}` is not an estimator label (labels: {labels:?})"),
+                            ));
+                        }
+                    }
                     let known = self.metric_names();
                     if !known.iter().any(|m| m == metric) {
                         return Err(err(

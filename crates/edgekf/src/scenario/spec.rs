@@ -432,6 +432,11 @@ pub enum PlotSpec {
         /// Legend text per estimator label, with `_{…}`/`^{…}` markup (default: the labels).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         legend: Option<std::collections::BTreeMap<String, String>>,
+        /// Draw each estimator's metric over this estimator's instead, paired run by run (the
+        /// ratio per run, then mean ± 1 standard error over the runs): a gap the ±1σ bands of
+        /// the metric itself would hide.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ratio_to: Option<String>,
     },
     /// Agent paths of the recorded run.
     Paths {
