@@ -952,6 +952,14 @@ fn summary_section(o: &mut String, dir: &Path, sc: &Value, slam: bool) -> Result
         fmt_num(s.window[1]),
         s.runs
     );
+    if let Some(which) = swept_value(sc) {
+        let _ = writeln!(
+            o,
+            "<p class=\"note\">This study is a sweep: the table is of the scenario as written, \
+             {}. Every value's summary is in <code>summary.csv</code> and the sweep's figure.</p>",
+            esc(&which)
+        );
+    }
     o.push_str(&table("summary", &rows[0], &rows[1..], &|c| c > 1));
     for l in &s.estimators {
         if let Some(d) = &l.diverged {
@@ -967,6 +975,20 @@ fn summary_section(o: &mut String, dir: &Path, sc: &Value, slam: bool) -> Result
         }
     }
     Ok(())
+}
+
+/// For a sweep, which value of its parameter the steady-state table shows (the scenario as
+/// written, `sweep.parameter = value` when the resolved scenario has it at that path).
+fn swept_value(sc: &Value) -> Option<String> {
+    let parameter = sc.get("sweep")?.get("parameter")?.as_str()?;
+    let mut v = sc;
+    for part in parameter.split('.') {
+        match v.get(part) {
+            Some(next) => v = next,
+            None => return Some(format!("whose `{parameter}` is in scenario.json")),
+        }
+    }
+    Some(format!("`{parameter}` = {v}"))
 }
 
 /// The resolved scenario as a table.

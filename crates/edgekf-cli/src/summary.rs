@@ -199,7 +199,10 @@ pub fn summarise_means(
             (Some(a), Some(b)) if a.is_finite() && b.is_finite() && *b > 0.0 => Some(a / b),
             _ => None,
         };
+        // A study judged run by run goes on past a diverged run, whose values read +∞.
+        let some_diverged = e.metrics.iter().any(|(_, m)| m.contains(&f64::INFINITY));
         let (status, diverged) = match &e.outcome {
+            Outcome::Completed if some_diverged => ("completed, some runs diverged", None),
             Outcome::Completed => ("completed", None),
             Outcome::Diverged { step, run, cause } => (
                 "diverged",

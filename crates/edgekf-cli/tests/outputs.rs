@@ -109,6 +109,12 @@ fn reproduce_all_writes_each_simulation_once_with_its_figures_and_pages() {
     }
     assert!(all.contains_key("index.html"));
     assert!(all.contains_key("slam-fig3/report.html"));
+    // A sweep's page says which value its steady-state table shows.
+    let page = fs::read_to_string(dir.join("garkf-fig11/report.html")).unwrap();
+    assert!(
+        page.contains("the table is of the scenario as written, `faults.availability` = 0.4"),
+        "the swept value named"
+    );
     // The steady-state table per simulation on stdout, logs on stderr.
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(

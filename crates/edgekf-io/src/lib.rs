@@ -526,7 +526,19 @@ pub fn status_csv(res: &Results) -> String {
     for e in &res.estimators {
         match &e.outcome {
             Outcome::Completed => {
-                let _ = writeln!(s, "{},completed,,,,", e.label);
+                let runs = res.runs.len();
+                match e.diverged_runs(runs) {
+                    0 => {
+                        let _ = writeln!(s, "{},completed,,,,", e.label);
+                    }
+                    k => {
+                        let _ = writeln!(
+                            s,
+                            "{},completed,,,,\"{k} of {runs} runs diverged on their own (their metrics read +inf from then on; the study judges divergence run by run)\"",
+                            e.label
+                        );
+                    }
+                }
             }
             Outcome::Diverged { step, run, cause } => {
                 let _ = writeln!(

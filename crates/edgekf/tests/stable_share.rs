@@ -66,6 +66,8 @@ fn a_diverged_run_is_one_unstable_run_not_the_end_of_the_study() {
     // The loop went on, so the study completed; the diverged runs read +∞ from their
     // divergence on.
     assert_eq!(e.outcome, Outcome::Completed);
+    // A diverged run is unstable (an unstable one may only have grown past the factor).
+    assert!(e.diverged_runs(runs) <= runs - stable as usize);
     let delta = together.values(&e.label, "tracking_error").expect("δ");
     let last = &delta[(together.steps.len() - 1) * runs..];
     for (r, (&s, &d)) in joint.iter().zip(last).enumerate() {

@@ -50,6 +50,19 @@
 //!   hexagon's bound 0.1012).
 //! - **(15) with the common R**: `(p_ijᵀ H†ᵀ ⊗ I)(I ⊗ R)(H† p_ij ⊗ I) = (p_ijᵀ A⁻¹ p_ij) R`, and
 //!   (17) divides by N once (the peer implementation divides a second time).
+//! - **`geo_noise = "matched"`** (option; the paper's R̃ is the default). R̃'s `R^ral / N` is the
+//!   variance of `(Θ̂_i − Θ) p_ij` only if the consensus averaged N independent, converged RAL
+//!   estimates; one consensus step per step is a low-pass filter that lags a moving Θ and
+//!   averages fewer, correlated estimates (GA-RKF at λ = 0.2 is 2–5× overconfident with the
+//!   paper's R̃). Matched, each agent estimates its consensus error from what it has — the
+//!   discrepancy `d_i = Θ̂_i − Θ̂^ral_i` to its own RAL, whose error is nearly independent of the
+//!   consensus's (it enters (16) with weight ε): `E‖d_i‖² ≈ E‖Θ̂_i − Θ‖² + (1 − 2ε) tr Σ^ral_i`,
+//!   `tr Σ^ral_i = tr(A_i⁻¹) tr R` ((15) for the general RAL; an approximation for the other
+//!   variants) — so `s_i = max(0, ⟨‖d_i‖²⟩ − (1 − 2ε) tr Σ^ral_i) / D²` per entry of Θ
+//!   (isotropic), `⟨·⟩` forgotten with memory `geo_memory` (default 5 s), and the geometric term
+//!   is `R^ral / N` scaled up to `s_i ‖p_ij‖²` per axis when that is larger (covariance matching,
+//!   Mehra 1972; the lag of a moving Θ is in `d_i` too). It does not model the step-to-step
+//!   correlation of the pseudo-observation's error over an outage.
 //! - R^ral needs `A_i` of a feasible step: when i's RAL is infeasible now, the geometry of its
 //!   last feasible step is used (the consensus estimate `Θ̂_i` is still current).
 //!
@@ -147,7 +160,35 @@ struct GarkfOptions {
     /// as infeasible (default [`DEFAULT_RANK_TOL`] = 1e-6: only numerically singular H).
     #[serde(default = "default_rank_tol")]
     ral_rank_tol: f64,
+    /// The geometric observation's noise: `paper` (default, R̃ of (10) with (15)/(17)) or
+    /// `matched` (the consensus error's variance matched online, see the module docs).
+    #[serde(default, skip_serializing_if = "GeoNoise::is_paper")]
+    geo_noise: GeoNoise,
+    /// The memory of `matched` [s] (default 5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    geo_memory: Option<f64>,
 }
+
+/// How R̃ of the geometric observation is composed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GeoNoise {
+    /// `R̃ = R^ral / N + ψ I` ((10), (15), (17)).
+    #[default]
+    Paper,
+    /// The `Θ̂_i p_ij` term's variance from the agent's own consensus-vs-RAL discrepancy
+    /// (covariance matching), never below the paper's.
+    Matched,
+}
+
+impl GeoNoise {
+    fn is_paper(&self) -> bool {
+        *self == GeoNoise::Paper
+    }
+}
+
+/// Default memory of `geo_noise = "matched"` [s].
+pub const DEFAULT_GEO_MEMORY: f64 = 5.0;
 
 fn default_rank_tol() -> f64 {
     DEFAULT_RANK_TOL
@@ -202,6 +243,22 @@ impl EstimatorKind for GarkfKind {
                 m.dim()
             ));
         }
+        match (opt.geo_noise, opt.geo_memory) {
+            (GeoNoise::Paper, Some(_)) => {
+                return Err("option `geo_memory` needs `geo_noise = \"matched\"`".into())
+            }
+            (GeoNoise::Matched, m_s) => {
+                let mem = m_s.unwrap_or(DEFAULT_GEO_MEMORY);
+                if !(mem.is_finite() && mem >= m.dt()) {
+                    return Err(format!(
+                        "option `geo_memory` must be at least one step (Δt = {} s) and finite, got {mem}",
+                        m.dt()
+                    ));
+                }
+                opt.geo_memory = Some(mem);
+            }
+            (GeoNoise::Paper, None) => {}
+        }
         let bound = nominal_epsilon_bound(m)?;
         let eps = if opt.epsilon < bound {
             opt.epsilon
@@ -238,6 +295,10 @@ impl Config {
             variant: self.opt.ral,
             mode: self.opt.infeasible,
             rank_tol: self.opt.ral_rank_tol,
+            geo_memory: match self.opt.geo_noise {
+                GeoNoise::Paper => None,
+                GeoNoise::Matched => self.opt.geo_memory,
+            },
         }
     }
 }
@@ -255,6 +316,8 @@ pub struct Settings {
     pub mode: InfeasibleRal,
     /// The RAL's rank threshold ([`RalOptions::rank_tol`]).
     pub rank_tol: f64,
+    /// `geo_noise = "matched"`: its memory [s]; `None` for the paper's R̃.
+    pub geo_memory: Option<f64>,
 }
 
 impl Configured for Config {
@@ -404,6 +467,11 @@ pub struct Garkf<const D: usize> {
     held: Vec<Option<Held<D>>>,
     psi: Vec<f64>,
     has_psi: Vec<bool>,
+    /// `geo_noise = "matched"`: per agent and run, the forgotten mean of
+    /// `‖Θ̂_i − Θ̂^ral_i‖²_F` over its feasible steps (NaN before the first), and the factor
+    /// `1 − Δt / memory` (0: off).
+    disc: Vec<f64>,
+    disc_keep: f64,
     /// Scratch of the metric edge: this step's observation per run.
     obs: Vec<Observation<D>>,
     /// Per-run scratch of one agent: its RAL sums, ψ sums and counts, consensus increments
@@ -462,6 +530,8 @@ impl<const D: usize> Garkf<D> {
             held: vec![None; na],
             psi: vec![0.0; na],
             has_psi: vec![false; na],
+            disc: vec![f64::NAN; na],
+            disc_keep: st.geo_memory.map_or(0.0, |mem| 1.0 - m.dt() / mem),
             obs: vec![Observation::Missing; runs],
             sums: vec![
                 RalSums {
@@ -632,6 +702,60 @@ impl<const D: usize> Garkf<D> {
                 };
             }
         }
+        if self.disc_keep > 0.0 {
+            self.match_discrepancy(s);
+        }
+    }
+
+    /// `geo_noise = "matched"`: the forgotten mean of `‖Θ̂_{i,k} − Θ̂^ral_{i,k}‖²_F` over the
+    /// steps where i's RAL is feasible.
+    fn match_discrepancy(&mut self, s: &Step<'_>) {
+        let runs = self.ca.runs;
+        let f = s.faults;
+        let faults = f.measurement_faults();
+        let keep = self.disc_keep;
+        for i in self.owners.clone() {
+            for r in 0..runs {
+                let k = i * runs + r;
+                if (faults && !f.present(i, r)) || !self.feasible[k] {
+                    continue;
+                }
+                let d2 = (self.theta[k] - self.theta_ral[k]).norm_squared();
+                self.disc[k] = if self.disc[k].is_nan() {
+                    d2
+                } else {
+                    keep * self.disc[k] + (1.0 - keep) * d2
+                };
+            }
+        }
+    }
+
+    /// `geo_noise = "matched"`: R̃'s geometric term scaled up to the matched variance of
+    /// `(Θ̂_i − Θ) p_ij` per axis, `s_i ‖p_ij‖²` with
+    /// `s_i = max(0, disc_i − (1 − 2ε) tr Σ^ral_i) / D²` and `tr Σ^ral_i = tr(A_i⁻¹) tr R_ij`
+    /// (see the module docs); never below the paper's `R^ral / N`.
+    fn matched_geometric(
+        (disc, eps): (f64, f64),
+        paper: Mat<D>,
+        gram: &Mat<D>,
+        w: &Mat<D>,
+        p: &Vect<D>,
+    ) -> Mat<D> {
+        let Some(inv) = gram.try_inverse() else {
+            return paper;
+        };
+        if disc.is_nan() {
+            return paper;
+        }
+        let ral_trace = inv.trace() * w.trace();
+        let per_entry = (disc - (1.0 - 2.0 * eps) * ral_trace).max(0.0) / (D * D) as f64;
+        let matched = per_entry * p.norm_squared();
+        let paper_axis = paper.trace() / D as f64;
+        if paper_axis > 0.0 && matched > paper_axis {
+            paper * (matched / paper_axis)
+        } else {
+            paper
+        }
     }
 
     /// Lines 12–21 for edge `e`: predict, then correct with the composite observation.
@@ -669,6 +793,9 @@ impl<const D: usize> Garkf<D> {
                     continue;
                 };
                 let mut rg = r_ral / self.n_agents;
+                if self.disc_keep > 0.0 {
+                    rg = Self::matched_geometric((self.disc[k], self.st.eps), rg, &h.gram, &w, &p);
+                }
                 for a in 0..D {
                     rg[(a, a)] += self.psi[k];
                 }

@@ -116,6 +116,23 @@ pub struct EstimatorResults {
     pub inputs: Vec<f64>,
 }
 
+impl EstimatorResults {
+    /// How many of the `runs` runs diverged on their own ([`Options::per_run_divergence`]:
+    /// their metrics read `+∞` from the report they passed the bound); 0 otherwise.
+    pub fn diverged_runs(&self, runs: usize) -> usize {
+        (0..runs)
+            .filter(|&r| {
+                self.values.iter().any(|v| {
+                    v.iter()
+                        .skip(r)
+                        .step_by(runs.max(1))
+                        .any(|x| *x == f64::INFINITY)
+                })
+            })
+            .count()
+    }
+}
+
 /// Results of a Monte Carlo study (or of a shard of its runs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Results {
