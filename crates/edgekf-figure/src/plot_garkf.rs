@@ -155,11 +155,23 @@ pub fn render(
             series,
             band,
             log_y,
+            log_x,
             target_trace: tt,
             window,
             ..
         } => panels(
-            sc, res, extra, title, rows, columns, series, band, *log_y, *tt, *window, &labels,
+            sc,
+            res,
+            extra,
+            title,
+            rows,
+            columns,
+            series,
+            band,
+            (*log_x, *log_y),
+            *tt,
+            *window,
+            &labels,
         )?,
         PlotSpec::Summary {
             title,
@@ -190,7 +202,7 @@ fn panels(
     columns: &str,
     series: &str,
     band: &str,
-    log_y: bool,
+    (log_x, log_y): (bool, bool),
     tt: bool,
     window: Option<[f64; 2]>,
     labels: &[String],
@@ -224,7 +236,12 @@ fn panels(
                     Axis::linear(l, u)
                 }
             };
-            let mut panel = Panel::new(Axis::linear("time t", "s").tight(), y_axis);
+            let x_axis = if log_x {
+                Axis::log("time t", "s").tight()
+            } else {
+                Axis::linear("time t", "s").tight()
+            };
+            let mut panel = Panel::new(x_axis, y_axis);
             if !col_label.is_empty() {
                 let param = sweep.map_or("", |s| s.parameter.as_str());
                 panel.title = if col_label.contains('=') || param.is_empty() {

@@ -493,6 +493,9 @@ pub enum PlotSpec {
         /// Logarithmic y axes.
         #[serde(default)]
         log_y: bool,
+        /// Logarithmic time axes (a fast transient beside a slow trend).
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        log_x: bool,
         /// Draw `tr Θ*(t)` of the maneuver as a dashed reference.
         #[serde(default)]
         target_trace: bool,
