@@ -408,50 +408,9 @@ fn summary(
     } else {
         format!("mean ± 1σ over {n} runs of the per-run time average")
     };
-    // Diverged loops give means hundreds of decades above the rest, which would squash every
-    // other point into the bottom of a log axis: show the rest, name the points off the top.
     if log_y && !share {
-        let means: Vec<f64> = panel
-            .curves
-            .iter()
-            .flat_map(|c| c.y.iter().copied())
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .collect();
-        let lo = means.iter().copied().fold(f64::INFINITY, f64::min);
-        let top = lo * 1e6;
-        let kept = means
-            .iter()
-            .copied()
-            .filter(|v| *v <= top)
-            .fold(0.0, f64::max);
-        let off: Vec<String> = panel
-            .curves
-            .iter()
-            .flat_map(|c| {
-                c.x.iter()
-                    .zip(&c.y)
-                    .filter(|(_, y)| y.is_nan() || **y > top)
-                    .map(|(x, y)| format!("{} at {x} ({y:.1e})", c.label))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        if !off.is_empty() && lo.is_finite() && kept > 0.0 {
-            panel.y_axis = panel.y_axis.with_range(lo / 3.0, kept * 10.0);
-            // A diverged point's ±1σ band spans its own hundreds of decades: leave it out.
-            for c in &mut panel.curves {
-                if let Some((blo, bhi)) = &mut c.band {
-                    for (k, y) in c.y.iter().enumerate() {
-                        if y.is_nan() || *y > top {
-                            blo[k] = f64::NAN;
-                            bhi[k] = f64::NAN;
-                        }
-                    }
-                }
-            }
-            note = format!(
-                "{note}; off the top (diverged, > 10⁶ × the smallest mean): {}",
-                off.join(", ")
-            );
+        if let Some(off) = clip_diverged(&mut panel) {
+            note = format!("{note}; off the top (diverged, > 10⁶ × the smallest mean): {off}");
         }
     }
     let drawn_over = overlaps(&panel.curves, 0.05);
@@ -472,6 +431,52 @@ fn summary(
     };
     fig.notes.extend(drawn_over);
     Ok(fig)
+}
+
+/// Diverged loops give means hundreds of decades above the rest, which would squash every other
+/// point into the bottom of a log axis: the axis keeps the rest, the bands of the points off the
+/// top are left out, and the points off the top are returned, named.
+fn clip_diverged(panel: &mut Panel) -> Option<String> {
+    let means: Vec<f64> = panel
+        .curves
+        .iter()
+        .flat_map(|c| c.y.iter().copied())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let lo = means.iter().copied().fold(f64::INFINITY, f64::min);
+    let top = lo * 1e6;
+    let kept = means
+        .iter()
+        .copied()
+        .filter(|v| *v <= top)
+        .fold(0.0, f64::max);
+    let off: Vec<String> = panel
+        .curves
+        .iter()
+        .flat_map(|c| {
+            c.x.iter()
+                .zip(&c.y)
+                .filter(|(_, y)| y.is_nan() || **y > top)
+                .map(|(x, y)| format!("{} at {x} ({y:.1e})", c.label))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    if off.is_empty() || !lo.is_finite() || kept <= 0.0 {
+        return None;
+    }
+    panel.y_axis = panel.y_axis.clone().with_range(lo / 3.0, kept * 10.0);
+    // A diverged point's ±1σ band spans its own hundreds of decades: leave it out.
+    for c in &mut panel.curves {
+        if let Some((blo, bhi)) = &mut c.band {
+            for (k, y) in c.y.iter().enumerate() {
+                if y.is_nan() || *y > top {
+                    blo[k] = f64::NAN;
+                    bhi[k] = f64::NAN;
+                }
+            }
+        }
+    }
+    Some(off.join(", "))
 }
 
 /// A study's framework: the agents at their configuration, its links, the leaders marked.
