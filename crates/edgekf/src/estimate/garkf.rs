@@ -164,7 +164,7 @@ struct GarkfOptions {
     /// `matched` (the consensus error's variance matched online, see the module docs).
     #[serde(default, skip_serializing_if = "GeoNoise::is_paper")]
     geo_noise: GeoNoise,
-    /// The memory of `matched` [s] (default 5).
+    /// The memory of `matched` (s) (default 5).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     geo_memory: Option<f64>,
 }
@@ -187,7 +187,7 @@ impl GeoNoise {
     }
 }
 
-/// Default memory of `geo_noise = "matched"` [s].
+/// Default memory of `geo_noise = "matched"` (s).
 pub const DEFAULT_GEO_MEMORY: f64 = 5.0;
 
 fn default_rank_tol() -> f64 {
@@ -316,7 +316,7 @@ pub struct Settings {
     pub mode: InfeasibleRal,
     /// The RAL's rank threshold ([`RalOptions::rank_tol`]).
     pub rank_tol: f64,
-    /// `geo_noise = "matched"`: its memory [s]; `None` for the paper's R̃.
+    /// `geo_noise = "matched"`: its memory (s); `None` for the paper's R̃.
     pub geo_memory: Option<f64>,
 }
 
