@@ -101,10 +101,69 @@ def test_ctrl_c_while_the_interpreter_starts_and_imports(small):
         try:
             _, err = p.communicate(timeout=2.0)
         except subprocess.TimeoutExpired:
-            p.kill()
-            _, err = p.communicate()
-            raise AssertionError(
-                f"not ended within 2 s of a SIGINT {delay:.3f} s into its start: {err!r}"
-            )
+            # The one window no package can close: CPython dropped the KeyboardInterrupt in
+            # an import's weakref callback before `import edgekf` began (the report is on
+            # stderr). A user presses Ctrl-C again: that one must end the child.
+            err = _stderr_so_far(p)
+            if not _dropped_by_cpython(err):
+                p.kill()
+                p.communicate()
+                raise AssertionError(
+                    f"not ended within 2 s of a SIGINT {delay:.3f} s into its start: {err!r}"
+                )
+            p.send_signal(signal.SIGINT)
+            sent = time.monotonic()
+            try:
+                p.communicate(timeout=2.0)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.communicate()
+                raise AssertionError(f"a second SIGINT did not end it either: {err!r}")
         assert time.monotonic() - sent < 2.0
         assert p.returncode in (1, -signal.SIGINT), (p.returncode, err)
+
+
+def _stderr_so_far(p):
+    """What the child has written to stderr until now (it is still running)."""
+    os.set_blocking(p.stderr.fileno(), False)
+    try:
+        return p.stderr.read() or b""
+    finally:
+        os.set_blocking(p.stderr.fileno(), True)
+
+
+def _dropped_by_cpython(err):
+    return b"Exception ignored in" in err and b"KeyboardInterrupt" in err
+
+
+# A SIGINT whose KeyboardInterrupt is raised inside a weakref callback: CPython prints it
+# ("Exception ignored in: ...") and drops it; the main loop then runs on.
+DROPPED = r"""
+import os, signal, sys, time, weakref
+if sys.argv[1] == "with":
+    import edgekf
+class Thing:
+    pass
+thing = Thing()
+ref = weakref.ref(thing, lambda _: os.kill(os.getpid(), signal.SIGINT))
+try:
+    del thing
+    end = time.monotonic() + 3.0
+    while time.monotonic() < end:
+        pass
+    print("dropped")
+except KeyboardInterrupt:
+    print("raised again")
+"""
+
+
+def test_a_ctrl_c_that_cpython_drops_is_raised_again_once_edgekf_is_imported():
+    """Without edgekf the interpreter drops the interrupt (the case is real); with it imported,
+    the KeyboardInterrupt reaches the main code, and the interpreter's report is kept."""
+    for arm, expected in (("without", "dropped"), ("with", "raised again")):
+        p = subprocess.run(
+            [sys.executable, "-c", DROPPED, arm], capture_output=True, timeout=60
+        )
+        assert p.returncode == 0, (arm, p.stdout, p.stderr)
+        assert p.stdout.decode().strip() == expected, (arm, p.stdout, p.stderr)
+        assert _dropped_by_cpython(p.stderr), (arm, p.stderr)

@@ -18,6 +18,12 @@ Quick start::
 
 from __future__ import annotations
 
+# First, before NumPy's long import: a Ctrl-C that CPython drops in an import's weakref
+# callback is raised again (python/src/interrupt.rs says why this is native code).
+from . import _edgekf
+
+_edgekf.keep_dropped_interrupts()
+
 import csv
 import io
 import json
@@ -28,8 +34,6 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
-
-from . import _edgekf
 
 __all__ = [
     "run",
