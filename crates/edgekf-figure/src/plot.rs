@@ -16,6 +16,7 @@
 
 use std::path::Path;
 
+use edgekf::framework::Framework;
 use edgekf::scenario::{PlotSpec, Scenario};
 use edgekf::sim::{Outcome, Results};
 
@@ -583,10 +584,17 @@ fn inputs_figure(
     fig
 }
 
+/// The paths of every estimator's loop: one panel per estimator in 2-D; in 3-D, three
+/// orthographic views (x–y, x–z, y–z) per estimator, one row each.
 fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]) -> Figure {
     let fw = sc.framework();
     let (n, d) = (fw.agents(), fw.dim());
     let keep = sc.path_reports();
+    let views: &[(usize, usize)] = if d >= 3 {
+        &[(0, 1), (0, 2), (1, 2)]
+    } else {
+        &[(0, 1)]
+    };
     let mut panels = Vec::new();
     for label in labels {
         let Some(e) = res.estimator(label) else {
@@ -594,82 +602,24 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
         };
         let reports = e.paths.len() / (n * d).max(1);
         let idx: Vec<usize> = keep.iter().copied().filter(|&k| k < reports).collect();
-        let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m"))
-            .with_title(spec.legend_text(label).to_string());
-        p.equal_aspect = true;
-        p.coincide_tolerance = None;
-        if idx.is_empty() {
-            panels.push(p);
-            continue;
-        }
-        let at = |k: usize, i: usize, c: usize| {
-            if c < d {
-                e.paths[k * n * d + i * d + c]
-            } else {
-                0.0
+        for &view in views {
+            let mut title = spec.legend_text(label).to_string();
+            if d >= 3 {
+                title = format!("{title} — {}–{} view", AXES[view.0], AXES[view.1]);
             }
-        };
-        let (first, last) = (idx[0], idx[idx.len() - 1]);
-        for &(i, j) in fw.graph().links() {
-            p.curves.push(
-                Curve::new(
-                    "final links",
-                    vec![at(last, i, 0), at(last, j, 0)],
-                    vec![at(last, i, 1), at(last, j, 1)],
-                )
-                .with_style(Style::line().colour(palette::LINK).width(1.2)),
-            );
+            let mut panel = path_panel(title, &e.paths, fw, &idx, view);
+            if d >= 3 && !panels.is_empty() {
+                // Twelve copies of one legend would crowd the views; the first says it all.
+                panel.legend = LegendMode::Hidden;
+            }
+            panels.push(panel);
         }
-        for i in 0..n {
-            let (colour, dash) = palette::agent(i);
-            p.curves.push(
-                Curve::new(
-                    "",
-                    idx.iter().map(|&k| at(k, i, 0)).collect(),
-                    idx.iter().map(|&k| at(k, i, 1)).collect(),
-                )
-                .with_style(Style::line().colour(colour).dash(dash).width(1.4)),
-            );
-        }
-        let (sx, sy): (Vec<f64>, Vec<f64>) =
-            (0..n).map(|i| (at(first, i, 0), at(first, i, 1))).unzip();
-        p.curves.push(Curve::new("start", sx, sy).with_style(
-            Style::markers(Marker::new(Shape::Circle, 8.0).hollow()).colour(palette::MARKER),
-        ));
-        let leaders = fw.leaders();
-        let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n)
-            .filter(|i| !leaders.contains(i))
-            .map(|i| (at(last, i, 0), at(last, i, 1)))
-            .unzip();
-        p.curves.push(Curve::new("end", fx, fy).with_style(
-            Style::markers(Marker::new(Shape::TriangleUp, 10.0)).colour(palette::MARKER),
-        ));
-        if !leaders.is_empty() {
-            let (lx, ly): (Vec<f64>, Vec<f64>) = leaders
-                .iter()
-                .map(|&i| (at(last, i, 0), at(last, i, 1)))
-                .unzip();
-            p.curves
-                .push(Curve::new("end (leaders)", lx, ly).with_style(
-                    Style::markers(Marker::new(Shape::TriangleUp, 11.0)).colour(palette::LEADER),
-                ));
-        }
-        for i in 0..n {
-            p.labels.push(Label {
-                offset: (7.0, -6.0),
-                h: HAlign::Left,
-                v: VAlign::Bottom,
-                size: 13.0,
-                ..Label::new(at(last, i, 0), at(last, i, 1), format!("{i}"))
-            });
-        }
-        p.legend = LegendMode::Auto;
-        panels.push(p);
     }
-    let cols = panels.len().clamp(1, 2);
+    let cols = if d >= 3 { 3 } else { panels.len().clamp(1, 2) };
     let rows = panels.len().div_ceil(cols).max(1);
+    let (w, h) = if d >= 3 { (480, 470) } else { (620, 560) };
     let mut fig = Figure::new(title_of(spec, "agent paths"))
-        .with_size(620 * cols as u32 + 40, 560 * rows as u32 + 110);
+        .with_size(w * cols as u32 + 40, h * rows as u32 + 110);
     fig.columns = cols;
     fig.panels = panels;
     let tmax = res.steps.last().copied().unwrap_or(0) as f64 * res.dt;
@@ -681,13 +631,96 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
     };
     fig.notes = vec![format!(
         "Run {}, 0–{}, positions at {every} (as in paths.csv); agent colours by index{}; final \
-         links grey; ○ start, ▲ end (red: leaders).",
+         links grey; ○ start, ▲ end (red: leaders){}.",
         sc.paths_run(),
         secs(tmax),
-        if n > 9 { ", agents 9+ dashed" } else { "" }
+        if n > 9 { ", agents 9+ dashed" } else { "" },
+        if d >= 3 {
+            "; 3-D: each row one estimator seen along z, y and x (orthographic)"
+        } else {
+            ""
+        }
     )];
     fig.notes.extend(divergence_notes(res, labels));
     fig
+}
+
+/// The coordinate names of the views.
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// One view of one loop's paths: coordinates `view.0` and `view.1` of the reports `idx` of
+/// `paths` (report-major, then agent, then coordinate), the final links, start and end markers.
+fn path_panel(
+    title: String,
+    paths: &[f64],
+    fw: &Framework,
+    idx: &[usize],
+    view: (usize, usize),
+) -> Panel {
+    let (n, d) = (fw.agents(), fw.dim());
+    let (a, b) = view;
+    let mut p =
+        Panel::new(Axis::linear(AXES[a], "m"), Axis::linear(AXES[b], "m")).with_title(title);
+    p.equal_aspect = true;
+    p.coincide_tolerance = None;
+    let (Some(&first), Some(&last)) = (idx.first(), idx.last()) else {
+        return p;
+    };
+    let at = |k: usize, i: usize, c: usize| {
+        if c < d {
+            paths[k * n * d + i * d + c]
+        } else {
+            0.0
+        }
+    };
+    let point = |k: usize, i: usize| (at(k, i, a), at(k, i, b));
+    for &(i, j) in fw.graph().links() {
+        let ((xi, yi), (xj, yj)) = (point(last, i), point(last, j));
+        p.curves.push(
+            Curve::new("final links", vec![xi, xj], vec![yi, yj])
+                .with_style(Style::line().colour(palette::LINK).width(1.2)),
+        );
+    }
+    for i in 0..n {
+        let (colour, dash) = palette::agent(i);
+        let (x, y): (Vec<f64>, Vec<f64>) = idx.iter().map(|&k| point(k, i)).unzip();
+        p.curves.push(
+            Curve::new("", x, y).with_style(Style::line().colour(colour).dash(dash).width(1.4)),
+        );
+    }
+    let (sx, sy): (Vec<f64>, Vec<f64>) = (0..n).map(|i| point(first, i)).unzip();
+    p.curves.push(Curve::new("start", sx, sy).with_style(
+        Style::markers(Marker::new(Shape::Circle, 8.0).hollow()).colour(palette::MARKER),
+    ));
+    let leaders = fw.leaders();
+    let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n)
+        .filter(|i| !leaders.contains(i))
+        .map(|i| point(last, i))
+        .unzip();
+    p.curves.push(
+        Curve::new("end", fx, fy).with_style(
+            Style::markers(Marker::new(Shape::TriangleUp, 10.0)).colour(palette::MARKER),
+        ),
+    );
+    if !leaders.is_empty() {
+        let (lx, ly): (Vec<f64>, Vec<f64>) = leaders.iter().map(|&i| point(last, i)).unzip();
+        p.curves
+            .push(Curve::new("end (leaders)", lx, ly).with_style(
+                Style::markers(Marker::new(Shape::TriangleUp, 11.0)).colour(palette::LEADER),
+            ));
+    }
+    for i in 0..n {
+        let (x, y) = point(last, i);
+        p.labels.push(Label {
+            offset: (7.0, -6.0),
+            h: HAlign::Left,
+            v: VAlign::Bottom,
+            size: 13.0,
+            ..Label::new(x, y, format!("{i}"))
+        });
+    }
+    p.legend = LegendMode::Auto;
+    p
 }
 
 #[cfg(test)]

@@ -93,6 +93,7 @@ const GA11: (&str, &str) = scenario!("garkf-fig11.toml");
 const GA12: (&str, &str) = scenario!("garkf-fig12.toml");
 const GA13: (&str, &str) = scenario!("garkf-fig13.toml");
 const GA13_DENSE: (&str, &str) = scenario!("garkf-fig13-dense.toml");
+const F3D: (&str, &str) = scenario!("formation-3d.toml");
 
 macro_rules! entry {
     ($name:literal, $desc:literal, $sc:expr, [$($p:literal),*]) => {
@@ -121,6 +122,7 @@ macro_rules! framework {
 pub const FRAMEWORKS: &[(&str, &str)] = &[
     framework!("frameworks/random50-sparse.json"),
     framework!("frameworks/random50-dense.json"),
+    framework!("frameworks/hexagon3d.json"),
 ];
 
 /// The embedded text of a shipped framework file.
@@ -285,6 +287,17 @@ pub const ENTRIES: &[Entry] = &[
         GA13,
         ["garkf-fig13"],
         [GA13_DENSE]
+    ),
+    entry!(
+        "formation-3d",
+        "a 3-D formation (11 agents, designed by `edgekf design`): every estimator, paths in three orthographic views",
+        F3D,
+        [
+            "formation-3d-paths",
+            "formation-3d-error",
+            "formation-3d-cov",
+            "formation-3d-procrustes"
+        ]
     ),
     entry!(
         "slam-fig3",
