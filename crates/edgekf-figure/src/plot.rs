@@ -248,8 +248,12 @@ fn colour_of(res: &Results, label: &str) -> crate::Rgb {
     )
 }
 
-/// A linear time axis from 0 to the last report (so that 0 is labelled).
-fn time_axis(res: &Results) -> Axis {
+/// The time axis: logarithmic from the first report (`log_x`), else linear from 0 to the last
+/// report (so that 0 is labelled).
+fn time_axis(res: &Results, log_x: bool) -> Axis {
+    if log_x {
+        return Axis::log("time t", "s").tight();
+    }
     let end = res.steps.last().copied().unwrap_or(1) as f64 * res.dt;
     Axis::linear("time t", "s").with_range(0.0, end)
 }
@@ -304,11 +308,7 @@ fn ratio_figure(
     let t = times(res);
     let runs = res.runs.len();
     let (ylabel, _) = metric_axis(metric);
-    let x_axis = if log_x {
-        Axis::log("time t", "s").tight()
-    } else {
-        time_axis(res)
-    };
+    let x_axis = time_axis(res, log_x);
     let base = spec.legend_text(reference).to_string();
     let mut panel = Panel::new(
         x_axis,
@@ -381,11 +381,7 @@ fn metric_figure(
     let t = times(res);
     let runs = res.runs.len();
     let (ylabel, yunit) = metric_axis(metric);
-    let x_axis = if log_x {
-        Axis::log("time t", "s").tight()
-    } else {
-        time_axis(res)
-    };
+    let x_axis = time_axis(res, log_x);
     let y_axis = if log_y {
         Axis::log(ylabel, yunit)
     } else {

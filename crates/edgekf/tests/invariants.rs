@@ -176,11 +176,51 @@ fn bit_difference(a: &Results, b: &Results) -> Option<String> {
 /// its last bits (Joseph form, symmetrised) and an eigenvalue is computed with an error of
 /// order n ε ‖C‖; `16 n ε ‖C‖` allows that and nothing more (an indefinite covariance from a
 /// wrong formula has a negative eigenvalue at the size of the entries).
+///
+/// It also reads every edge's covariance ([`Estimator::edge_covariance`], the one quantity every
+/// kind exposes alike): each must be symmetric PSD, and their traces summed over the edges are
+/// kept per (step, run), for [`check_kind`] to compare with `cov_trace`.
 #[derive(Default)]
 struct PsdCheck {
+    /// Directed edges and dimension of the scenario.
+    edges: usize,
+    dim: usize,
     /// Per estimator index: matrices checked.
     checked: Mutex<Vec<usize>>,
+    /// Σ_e tr(edge covariance) per (step, run), for a kind that exposes every edge's.
+    edge_traces: Mutex<std::collections::BTreeMap<(usize, usize), f64>>,
     failures: Mutex<Vec<String>>,
+}
+
+impl PsdCheck {
+    fn new(sc: &Scenario) -> Self {
+        Self {
+            edges: sc.framework().graph().num_edges(),
+            dim: sc.framework().dim(),
+            ..Self::default()
+        }
+    }
+
+    /// Every edge's covariance of run `r`: PSD, and the sum of their traces (`None` when the
+    /// kind exposes none).
+    fn edge_covariances(&self, k: usize, run: usize, r: usize, est: &dyn Estimator) -> Option<f64> {
+        let d = self.dim;
+        let mut buf = vec![0.0; d * d];
+        let mut sum = 0.0;
+        for e in 0..self.edges {
+            if !est.edge_covariance(e, r, &mut buf) {
+                return None;
+            }
+            if let Some(why) = not_psd(&DMatrix::from_row_slice(d, d, &buf)) {
+                self.failures
+                    .lock()
+                    .unwrap()
+                    .push(format!("step {k}, run {run}, edge {e}'s covariance: {why}"));
+            }
+            sum += (0..d).map(|a| buf[a * d + a]).sum::<f64>();
+        }
+        Some(sum)
+    }
 }
 
 impl Observer for PsdCheck {
@@ -195,6 +235,12 @@ impl Observer for PsdCheck {
                         runs.start + r
                     ));
                 }
+            }
+            if let Some(t) = self.edge_covariances(k, runs.start + r, r, est) {
+                self.edge_traces
+                    .lock()
+                    .unwrap()
+                    .insert((k, runs.start + r), t);
             }
         }
         let mut checked = self.checked.lock().unwrap();
@@ -294,7 +340,7 @@ fn check_kind(case: Case, kind: &dyn EstimatorKind) -> Vec<String> {
         "{case:?}: the faults stage is active exactly in the fault scenario"
     );
     // 1, 2 and 3: covariances checked on one and three threads, allocations counted on two.
-    let psd = PsdCheck::default();
+    let psd = PsdCheck::new(&sc);
     let window = AllocWindow::new(ALLOC_FROM, STEPS, RUNS);
     let one = run_on(1, &sc, &psd);
     let two = run_on(2, &sc, &window);
@@ -308,6 +354,7 @@ fn check_kind(case: Case, kind: &dyn EstimatorKind) -> Vec<String> {
             failures.push(format!("1 vs {t} threads differ: {d}"));
         }
     }
+    failures.extend(edge_trace_failures(case, &one, name, &psd));
     failures.extend(psd.failures.into_inner().unwrap());
     let checked = psd
         .checked
@@ -352,6 +399,43 @@ fn check_kind(case: Case, kind: &dyn EstimatorKind) -> Vec<String> {
         }
     );
     failures
+}
+
+/// Where every edge is tracked (no measurement faults), the edges' covariance traces sum to
+/// `cov_trace` at every reported step and run, to rounding (`1e-10` relative: the centralised
+/// filter sums its node-space blocks in another order). A kind that reports a covariance trace
+/// must expose its edges' covariances.
+fn edge_trace_failures(case: Case, res: &Results, name: &str, psd: &PsdCheck) -> Vec<String> {
+    let traces = psd.edge_traces.lock().unwrap();
+    let ct = res.values(name, "cov_trace").expect("cov_trace");
+    let runs = res.runs.len();
+    if traces.is_empty() {
+        return if ct.iter().any(|&v| v != 0.0) {
+            vec![
+                "reports a covariance trace but no edge covariance (Estimator::edge_covariance)"
+                    .into(),
+            ]
+        } else {
+            Vec::new()
+        };
+    }
+    if case == Case::Faults {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for (&(k, r), &sum) in traces.iter() {
+        let Some(at) = res.steps.iter().position(|&s| s == k) else {
+            continue;
+        };
+        let want = ct[at * runs + r];
+        if (sum - want).abs() > 1e-10 * want.abs().max(1e-300) {
+            out.push(format!(
+                "step {k}, run {r}: the edges' covariance traces sum to {sum:e}, cov_trace is {want:e}"
+            ));
+        }
+    }
+    out.truncate(3);
+    out
 }
 
 /// Runs of the consistency check (and its reports: steps 1, 30, …, 600).

@@ -432,4 +432,25 @@ impl Estimator for Crkf {
     fn covariances(&self, r: usize) -> Vec<DMatrix<f64>> {
         vec![self.node_covariance(r).clone()]
     }
+
+    /// `Cov(ζ_i − ζ_j) = Σ_ii + Σ_jj − Σ_ij − Σ_ji` in node space (`ζ_0 = 0`: agent 0's blocks
+    /// are zero), the edge's block of `G Σ Gᵀ`.
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        let (i, j) = self.edges[e];
+        let (d, s) = (self.dim, self.node_covariance(r));
+        let block = |p: usize, q: usize, a: usize, b: usize| {
+            if p == 0 || q == 0 {
+                0.0
+            } else {
+                s[((p - 1) * d + a, (q - 1) * d + b)]
+            }
+        };
+        for a in 0..d {
+            for b in 0..d {
+                out[a * d + b] =
+                    block(i, i, a, b) + block(j, j, a, b) - block(i, j, a, b) - block(j, i, a, b);
+            }
+        }
+        true
+    }
 }

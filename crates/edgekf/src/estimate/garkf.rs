@@ -965,4 +965,8 @@ impl<const D: usize> Estimator for Garkf<D> {
             .map(|e| self.covariance(e, r))
             .collect()
     }
+
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        super::copy_position_block(&self.covariance(e, r), D, out)
+    }
 }

@@ -653,4 +653,19 @@ impl Estimator for Jrkf {
             .map(|i| self.covariance(i, r).clone())
             .collect()
     }
+
+    /// Edge `e`'s diagonal block of its owner's joint covariance.
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        let Some(i) = self.agent_edges.iter().position(|a| a.contains(&e)) else {
+            return false;
+        };
+        let (d, at) = (self.dim, (e - self.agent_edges[i].start) * self.dim);
+        let c = self.covariance(i, r);
+        for a in 0..d {
+            for b in 0..d {
+                out[a * d + b] = c[(at + a, at + b)];
+            }
+        }
+        true
+    }
 }

@@ -154,4 +154,8 @@ impl Estimator for Mle {
     fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
         self.covs.clone()
     }
+
+    fn edge_covariance(&self, e: usize, _r: usize, out: &mut [f64]) -> bool {
+        super::copy_position_block(&self.covs[e], self.dim, out)
+    }
 }

@@ -169,4 +169,8 @@ impl<const D: usize> Estimator for Mmse<D> {
     fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
         self.posteriors.iter().map(to_dynamic).collect()
     }
+
+    fn edge_covariance(&self, e: usize, _r: usize, out: &mut [f64]) -> bool {
+        super::copy_static(&self.posteriors[e], out)
+    }
 }

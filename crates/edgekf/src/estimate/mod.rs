@@ -144,6 +144,35 @@ pub trait Estimator: Send {
     fn covariances(&self, _r: usize) -> Vec<DMatrix<f64>> {
         Vec::new()
     }
+    /// The posterior covariance of directed edge `e`'s position estimate in run `r`, as it stands
+    /// after the last step: D × D, row-major, into `out` (length D²); `false` for an estimator
+    /// without one (`oracle`). The same quantity for every kind, whatever it holds inside
+    /// (one block per edge, per agent, or the centralised node-space one): what a viewer draws as
+    /// the edge's uncertainty ellipse. Where the edge is tracked, its trace is the edge's part of
+    /// `cov_trace` (`tests/invariants.rs` checks the sum). Not called in the step loop.
+    fn edge_covariance(&self, _e: usize, _r: usize, _out: &mut [f64]) -> bool {
+        false
+    }
+}
+
+/// Copies `m` into `out` (row-major), without allocating.
+pub(crate) fn copy_static<const D: usize>(m: &SMatrix<f64, D, D>, out: &mut [f64]) -> bool {
+    for a in 0..D {
+        for b in 0..D {
+            out[a * D + b] = m[(a, b)];
+        }
+    }
+    true
+}
+
+/// Copies the `d × d` top-left block of `m` into `out` (row-major): a position block.
+pub(crate) fn copy_position_block(m: &DMatrix<f64>, d: usize, out: &mut [f64]) -> bool {
+    for a in 0..d {
+        for b in 0..d {
+            out[a * d + b] = m[(a, b)];
+        }
+    }
+    true
 }
 
 /// The in-step exchange of an estimator whose agents hear their neighbours within a step.

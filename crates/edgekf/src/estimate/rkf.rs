@@ -758,6 +758,10 @@ impl<const D: usize> Estimator for Rkf<D> {
             .map(|e| super::to_dynamic(&self.covariance(e, r)))
             .collect()
     }
+
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        super::copy_static(&self.covariance(e, r), out)
+    }
 }
 
 #[cfg(test)]

@@ -1142,6 +1142,10 @@ impl<const D: usize> Estimator for RkfCa<D> {
             .map(|e| self.covariance(e, r))
             .collect()
     }
+
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        super::copy_position_block(&self.covariance(e, r), D, out)
+    }
 }
 
 /// Whether a CA filter provides `edge_cov_trace` / `pcrb_trace` (only with a metric edge).

@@ -404,4 +404,8 @@ impl<const D: usize> Estimator for RkfCommless<D> {
             .map(|e| to_dynamic(&self.covariance(e, r)))
             .collect()
     }
+
+    fn edge_covariance(&self, e: usize, r: usize, out: &mut [f64]) -> bool {
+        super::copy_static(&self.covariance(e, r), out)
+    }
 }
