@@ -604,8 +604,9 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
                 title = format!("{title} — {}–{} view", AXES[view.0], AXES[view.1]);
             }
             let mut panel = path_panel(title, &e.paths, fw, &idx, view);
-            if d >= 3 && !panels.is_empty() {
-                // Twelve copies of one legend would crowd the views; the first says it all.
+            if d >= 3 {
+                // A legend per view would crowd them, and one placed beside a view squeezes
+                // it: the note below says what the marks are.
                 panel.legend = LegendMode::Hidden;
             }
             panels.push(panel);
@@ -626,11 +627,16 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
         format!("{shown} log-spaced reports of {}", res.steps.len())
     };
     fig.notes = vec![format!(
-        "Run {}, 0–{}, positions at {every} (as in paths.csv); agent colours by index{}; final \
+        "Run {}, 0–{}, positions at {every} (as in paths.csv); agent colours by index{}{}; final \
          links grey; ○ start, ▲ end (red: leaders){}.",
         sc.paths_run(),
         secs(tmax),
         if n > 9 { ", agents 9+ dashed" } else { "" },
+        if n > MAX_LABELLED {
+            format!(" (numbered up to {MAX_LABELLED} agents)")
+        } else {
+            String::new()
+        },
         if d >= 3 {
             "; 3-D: each row one estimator seen along z, y and x (orthographic)"
         } else {
@@ -640,6 +646,9 @@ fn paths_figure(spec: &PlotSpec, sc: &Scenario, res: &Results, labels: &[String]
     fig.notes.extend(divergence_notes(res, labels));
     fig
 }
+
+/// Paths figures number the agents up to this many.
+const MAX_LABELLED: usize = 30;
 
 /// The coordinate names of the views.
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -705,7 +714,8 @@ fn path_panel(
                 Style::markers(Marker::new(Shape::TriangleUp, 11.0)).colour(palette::LEADER),
             ));
     }
-    for i in 0..n {
+    // Agent numbers where they can be read (every shipped paths figure has at most 11 agents).
+    for i in (0..n).filter(|_| n <= MAX_LABELLED) {
         let (x, y) = point(last, i);
         p.labels.push(Label {
             offset: (7.0, -6.0),
