@@ -290,7 +290,7 @@ pub const ENTRIES: &[Entry] = &[
     ),
     entry!(
         "formation-3d",
-        "a 3-D formation (11 agents, designed by `edgekf design`): every estimator, paths in three orthographic views",
+        "a 3-D formation (11 agents, designed by edgekf design): every estimator, paths in three orthographic views",
         F3D,
         [
             "formation-3d-paths",
