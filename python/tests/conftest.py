@@ -2,9 +2,18 @@
 
 import os
 import pathlib
+import signal
 import subprocess
 
 import pytest
+
+# The Ctrl-C tests send SIGINT to child interpreters, as a terminal does. A shell script that
+# starts a job in the background (`… &` without job control, as a CI harness may) starts it with
+# SIGINT *ignored*, and an ignored signal stays ignored across exec: every child would then ignore
+# Ctrl-C and those tests would fail for the harness's sake. Give the children a terminal's
+# disposition: a handler here is reset to the default in each child at exec.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 

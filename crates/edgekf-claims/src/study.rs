@@ -275,6 +275,7 @@ impl Study {
                     input_lags: 1,
                     input_from: 1,
                     per_run_divergence: self.counts_stable_runs(),
+                    ..sim::Options::default()
                 };
                 let mut results = Vec::with_capacity(list.len());
                 for &s in &list {

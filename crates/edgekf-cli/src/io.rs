@@ -151,6 +151,8 @@ pub fn read_shard(dir: &Path) -> Result<Results> {
             valid: e.valid,
             paths,
             inputs,
+            // A shard keeps no frames (frames.json is written by a whole study's run).
+            frames: Vec::new(),
         });
     }
     if at != bytes.len() {
@@ -162,6 +164,8 @@ pub fn read_shard(dir: &Path) -> Result<Results> {
         runs: h.runs[0]..h.runs[1],
         total_runs: h.total_runs,
         paths_run: h.paths_run,
+        frame_steps: Vec::new(),
+        frame_targets: Vec::new(),
         estimators,
         input_acov: Vec::new(),
     })

@@ -21,6 +21,7 @@ mod claims;
 mod design;
 mod interrupt;
 mod io;
+mod player;
 mod report;
 mod slam;
 mod summary;
@@ -676,7 +677,14 @@ fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
 pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results> {
     let total = (range.len() * sc.steps()) as u64;
     let p = Progress::new(total, sc.name());
-    let res = sim::run_range(sc, range, &p, sim::Options::default());
+    // A few runs frame by frame for the report page's player, within its byte budget.
+    let (frame_runs, frame_limit) = edgekf_io::frames::frame_options(sc);
+    let opt = sim::Options {
+        frame_runs,
+        frame_limit,
+        ..sim::Options::default()
+    };
+    let res = sim::run_range(sc, range, &p, opt);
     p.0.finish_and_clear();
     Ok(res?)
 }

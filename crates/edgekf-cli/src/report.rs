@@ -844,6 +844,8 @@ pub fn write_page(dir: &Path) -> Result<PathBuf> {
     page_start(&format!("edgekf — {name}"), &mut o);
     page_header(&mut o, name, sc, &reps);
     figures_section(&mut o, dir, &reps, slam, listed.as_deref())?;
+    let frames = of_study(dir, listed.as_deref(), "frames.json");
+    crate::player::section(&mut o, dir, frames)?;
     summary_section(&mut o, dir, sc, slam)?;
     let claims = read_claims(dir)?;
     o.push_str(&claims_section(claims.as_deref(), "claims"));
@@ -874,7 +876,7 @@ fn page_header(o: &mut String, name: &str, sc: &Value, reps: &[&registry::Entry]
             names.join(", ")
         );
     }
-    o.push_str("<nav><a href=\"#figures\">Figures</a><a href=\"#summary\">Steady state</a><a href=\"#claims\">Claims</a><a href=\"#scenario\">Scenario</a><a href=\"#provenance\">Provenance</a><a href=\"#files\">Files</a></nav></header>\n");
+    o.push_str("<nav><a href=\"#figures\">Figures</a><a href=\"#watch\">Watch the run</a><a href=\"#summary\">Steady state</a><a href=\"#claims\">Claims</a><a href=\"#scenario\">Scenario</a><a href=\"#provenance\">Provenance</a><a href=\"#files\">Files</a></nav></header>\n");
 }
 
 /// The figures of each reproduction, then any other figure in the directory.

@@ -49,6 +49,11 @@ fn chromium() -> PathBuf {
 
 /// Runs headless Chromium on `page` with `extra` flags; returns (stdout, stderr).
 fn browse(page: &Path, extra: &[String]) -> (String, String) {
+    browse_at(page, "", extra)
+}
+
+/// [`browse`] at `page` + `fragment` (e.g. `#t=1.5`).
+fn browse_at(page: &Path, fragment: &str, extra: &[String]) -> (String, String) {
     let profile = std::env::temp_dir().join(format!(
         "edgekf-chromium-{}-{}",
         std::process::id(),
@@ -56,7 +61,10 @@ fn browse(page: &Path, extra: &[String]) -> (String, String) {
     ));
     let _ = fs::remove_dir_all(&profile);
     fs::create_dir_all(&profile).unwrap();
-    let url = format!("file://{}", page.canonicalize().unwrap().display());
+    let url = format!(
+        "file://{}{fragment}",
+        page.canonicalize().unwrap().display()
+    );
     let mut cmd = Command::new(chromium());
     cmd.args([
         "--headless",
@@ -203,6 +211,7 @@ fn report_pages_render_in_chromium_without_errors() {
     let out = root.to_str().unwrap();
     edgekf(&[
         "reproduce",
+        "eusipco-fig3",
         "thesis-fig3.3",
         "thesis-fig3.4",
         "slam-disturbed",
@@ -261,7 +270,11 @@ fn report_pages_render_in_chromium_without_errors() {
         "the uncaught error reaches the console log"
     );
 
-    // A screenshot of the filter study's page.
+    // The player on a study of several estimators.
+    let eusipco = root.join("eusipco/report.html");
+    player_plays_scrubs_and_follows_links(&eusipco, &root.join("eusipco/frames.json"));
+
+    // A screenshot of the filter study's page (the figures, then the player).
     let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("report-page.png");
     let _ = fs::remove_file(&shot);
     browse(
@@ -284,4 +297,57 @@ fn report_pages_render_in_chromium_without_errors() {
         "took {:?}",
         t0.elapsed()
     );
+}
+
+/// The opening tag of the element with `id` in `dom`.
+fn tag_of<'a>(dom: &'a str, id: &str) -> &'a str {
+    let i = dom
+        .find(&format!("id=\"{id}\""))
+        .unwrap_or_else(|| panic!("no #{id} in the DOM"));
+    let start = dom[..i].rfind('<').unwrap();
+    let end = dom[i..].find('>').unwrap() + i;
+    &dom[start..=end]
+}
+
+/// The player, driven by its self-test (`&selftest` in the link): a link to a moment (the last
+/// estimator, the second run, a time half-way) selects that frame, run and estimator; the first
+/// and the last frame draw different pictures; Play moves the frames on and a second press
+/// pauses; the selectors and the slider answer input events; and the canvas is drawn on.
+fn player_plays_scrubs_and_follows_links(page: &Path, frames: &Path) {
+    let f: serde_json::Value = serde_json::from_str(&fs::read_to_string(frames).unwrap()).unwrap();
+    assert_eq!(f["schema"], "edgekf.frames/1");
+    let est = f["estimators"].as_array().unwrap().last().unwrap();
+    let label = est["label"].as_str().unwrap();
+    let runs = est["runs"].as_array().unwrap();
+    assert!(runs.len() >= 2, "two runs recorded ({} here)", runs.len());
+    let run = runs[1]["run"].as_u64().unwrap();
+    let steps = f["steps"].as_array().unwrap();
+    let mid = steps.len() / 2;
+    let t = steps[mid].as_f64().unwrap() * f["dt"].as_f64().unwrap();
+    let fragment = format!("#t={t}&run={run}&est={label}&selftest");
+    let (dom, err) = browse_at(page, &fragment, &["--dump-dom".to_string()]);
+    let console: Vec<&str> = err.lines().filter(|l| l.contains(":CONSOLE")).collect();
+    assert!(console.is_empty(), "console output {console:?}");
+    let player = tag_of(&dom, "player");
+    assert_eq!(attr(player, "data-estimator").as_deref(), Some(label));
+    assert_eq!(attr(player, "data-run"), Some(run.to_string()));
+    let status = tag_of(&dom, "player-status");
+    assert_eq!(
+        attr(status, "data-hash-frame"),
+        Some(mid.to_string()),
+        "the link's time selects its frame: {status}"
+    );
+    assert_eq!(attr(status, "data-frames-differ").as_deref(), Some("true"));
+    assert_eq!(attr(status, "data-play-advanced").as_deref(), Some("true"));
+    assert_eq!(attr(status, "data-paused").as_deref(), Some("true"));
+    assert_eq!(
+        attr(status, "data-controls").as_deref(),
+        Some("true"),
+        "{status}"
+    );
+    let self_check = tag_of(&dom, "selfcheck");
+    assert_eq!(attr(self_check, "data-errors").as_deref(), Some("0"));
+
+    let ink: f64 = attr(status, "data-ink").unwrap().parse().unwrap();
+    assert!(ink > 0.005, "the canvas is {ink} drawn: blank?");
 }

@@ -8,6 +8,7 @@
 //! saved from Python is byte-identical to the CLI's.
 #![warn(missing_docs)]
 
+pub mod frames;
 pub mod framework;
 pub mod outdir;
 pub mod reproductions;
@@ -709,7 +710,8 @@ pub fn input_agents(sc: &Scenario) -> Vec<usize> {
 }
 
 /// Stages the tables of a finished study: `scenario.json`, `metrics.csv`, `paths.csv`,
-/// `inputs.csv` (when the scenario has input figures) and `status.csv`.
+/// `inputs.csv` (when the scenario has input figures), `frames.json` (when it was run with
+/// frames) and `status.csv`.
 ///
 /// # Errors
 /// [`OutputError`] when a file cannot be written.
@@ -724,6 +726,9 @@ pub fn stage_tables(st: &mut Staged, sc: &Scenario, res: &Results) -> Result<(),
     let of = input_agents(sc);
     if !of.is_empty() {
         st.write("inputs.csv", inputs_csv(res, dim, agents, &of).as_bytes())?;
+    }
+    if let Some(frames) = frames::frames_json(sc, res) {
+        st.write("frames.json", frames.as_bytes())?;
     }
     st.write("status.csv", status_csv(res).as_bytes())
 }

@@ -254,6 +254,8 @@ impl<'a> World<'a> {
                     paths: Vec::new(),
                     inputs: Vec::new(),
                     acov: Vec::new(),
+                    frames: Vec::new(),
+                    frame_targets: Vec::new(),
                 };
                 for o in l.observers {
                     o.finish(&mut out);

@@ -5,6 +5,7 @@
 use std::ops::Range;
 
 use super::divergence::{self, Stop};
+use super::frames::{FramePlan, FrameRecorder};
 use super::metrics::{metrics_for, Measure, Metric};
 use super::observe::{InputAutocov, LaneObserver, PathRecorder};
 use super::sensing::EdgeStates;
@@ -97,13 +98,13 @@ pub(crate) struct Lane {
 
 impl Lane {
     /// The loop of estimator `def`, starting from `z0`; `record` is the chunk index of the run
-    /// whose paths are kept.
+    /// whose paths are kept, `frames` the frames the chunk records.
     pub(crate) fn new(
         sc: &Scenario,
         def: &EstimatorDef,
         sh: &Shared<'_>,
         z0: &[f64],
-        record: Option<usize>,
+        (record, frames): (Option<usize>, Option<&FramePlan>),
         opt: Options,
     ) -> Self {
         let fw = sc.framework();
@@ -114,6 +115,14 @@ impl Lane {
         let mut observers: Vec<Box<dyn LaneObserver>> = Vec::new();
         if let Some(r) = record {
             observers.push(Box::new(PathRecorder::new(r, runs, nd, nr)));
+        }
+        if let Some(plan) = frames {
+            let m = fw.graph().num_edges();
+            observers.push(Box::new(FrameRecorder::new(
+                plan,
+                (fw.agents(), m, d),
+                runs,
+            )));
         }
         if opt.input_lags > 0 {
             observers.push(Box::new(InputAutocov::new(
@@ -219,7 +228,10 @@ impl Lane {
             if self.stop.is_some() {
                 return;
             }
-            observers.iter_mut().for_each(|o| o.on_report(&s.z));
+            for o in observers.iter_mut() {
+                o.on_report(&s.z);
+                o.on_measure(&meas);
+            }
         }
         self.control(at, sh, cx);
     }
@@ -266,6 +278,8 @@ impl Lane {
             paths: Vec::new(),
             inputs: Vec::new(),
             acov: Vec::new(),
+            frames: Vec::new(),
+            frame_targets: Vec::new(),
         };
         for o in self.observers {
             o.finish(&mut out);

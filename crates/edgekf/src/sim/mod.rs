@@ -26,6 +26,7 @@
 pub mod cost;
 pub(crate) mod divergence;
 pub(crate) mod faults;
+pub mod frames;
 pub(crate) mod lane;
 pub mod metrics;
 pub(crate) mod motion;
@@ -41,9 +42,10 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::estimate::Estimator;
-use crate::scenario::Scenario;
+use crate::scenario::{EstimatorDef, Scenario};
 pub use cost::{cost, StudyCost};
 use divergence::Stop;
+pub use frames::RunFrames;
 use lane::{At, Context, Lane};
 use stages::Shared;
 pub use stats::Series;
@@ -114,6 +116,8 @@ pub struct EstimatorResults {
     pub paths: Vec<f64>,
     /// Inputs `u_k` of the recorded run, laid out like `paths`.
     pub inputs: Vec<f64>,
+    /// With [`Options::frame_runs`]: the frames of those runs simulated here, in run order.
+    pub frames: Vec<RunFrames>,
 }
 
 impl EstimatorResults {
@@ -146,6 +150,11 @@ pub struct Results {
     pub total_runs: usize,
     /// The recorded run (global index).
     pub paths_run: usize,
+    /// The reported steps of the frames ([`Options::frame_runs`]; empty without).
+    pub frame_steps: Vec<usize>,
+    /// The target formation `Z*_k` at those steps, `[f · N·D + i·D + d]`, where the scenario
+    /// has one (empty otherwise).
+    pub frame_targets: Vec<f64>,
     /// Per estimator.
     pub estimators: Vec<EstimatorResults>,
     /// With [`Options::input_lags`]: the inputs' autocovariance pooled over agents, runs and the
@@ -216,6 +225,11 @@ impl Results {
             runs: 0..total,
             total_runs: total,
             paths_run: first.paths_run,
+            frame_steps: first.frame_steps.clone(),
+            frame_targets: parts
+                .iter()
+                .find(|p| !p.frame_targets.is_empty())
+                .map_or_else(Vec::new, |p| p.frame_targets.clone()),
             estimators: Vec::new(),
             input_acov: Vec::new(),
         };
@@ -238,6 +252,11 @@ impl Results {
                     inputs.clone_from(&pe.inputs);
                 }
             }
+            // The parts are in run order and hold disjoint runs.
+            let frames = parts
+                .iter()
+                .flat_map(|p| p.estimators[e].frames.iter().cloned())
+                .collect();
             out.estimators.push(EstimatorResults {
                 label: f.label.clone(),
                 kind: f.kind.clone(),
@@ -247,6 +266,7 @@ impl Results {
                 valid: best.map_or(nr, |(v, _)| v),
                 paths,
                 inputs,
+                frames,
             });
         }
         Ok(out)
@@ -266,6 +286,12 @@ pub struct Options {
     /// chunk has diverged, or at a breakdown or a non-finite value of a run not yet diverged.
     /// Off: the first diverged run stops the estimator's loop.
     pub per_run_divergence: bool,
+    /// Record frames ([`RunFrames`]) of this many runs, from the scenario's `paths_run` on
+    /// (0: none) ...
+    pub frame_runs: usize,
+    /// ... at most this many frames each, at the path reports thinned evenly
+    /// ([`frames::thin_frames`]).
+    pub frame_limit: usize,
 }
 
 /// The runs of shard `i` (1-based) of `k`: contiguous ranges covering `0..runs`.
@@ -420,6 +446,8 @@ pub(crate) struct LaneOut {
     pub(crate) paths: Vec<f64>,
     pub(crate) inputs: Vec<f64>,
     pub(crate) acov: Vec<f64>,
+    pub(crate) frames: Vec<RunFrames>,
+    pub(crate) frame_targets: Vec<f64>,
 }
 
 pub(crate) fn assemble(
@@ -429,56 +457,18 @@ pub(crate) fn assemble(
     opt: Options,
 ) -> Results {
     let steps = sc.report_steps();
-    let nr = steps.len();
-    let runs = range.len();
-    let mut estimators = Vec::with_capacity(sc.estimators().len());
-    for (e, def) in sc.estimators().iter().enumerate() {
-        let names: Vec<String> = sc.metrics_of(def).iter().map(|m| m.to_string()).collect();
-        let mut values = vec![vec![0.0; nr * runs]; names.len()];
-        let mut stop: Option<&Stop> = None;
-        let mut paths = Vec::new();
-        let mut inputs = Vec::new();
-        for part in &parts {
-            let lane = &part.lanes[e];
-            let off = part.range.start - range.start;
-            place(
-                &mut values,
-                &lane.values,
-                nr,
-                runs,
-                off..off + part.range.len(),
-            );
-            if let Some(s) = &lane.stop {
-                if stop.is_none_or(|b| s.before(b)) {
-                    stop = Some(s);
-                }
-            }
-            if !lane.paths.is_empty() {
-                paths.clone_from(&lane.paths);
-                inputs.clone_from(&lane.inputs);
-            }
-        }
-        let valid = stop.map_or(nr, |s| s.report);
-        for v in &mut values {
-            v[valid * runs..].fill(f64::NAN);
-        }
-        estimators.push(EstimatorResults {
-            label: def.label().to_string(),
-            kind: def.kind().to_string(),
-            metrics: names,
-            values,
-            outcome: stop.map_or(Outcome::Completed, |s| Outcome::Diverged {
-                step: s.step,
-                run: s.run,
-                cause: s.cause.clone(),
-            }),
-            valid,
-            paths,
-            inputs,
-        });
-    }
+    let estimators = sc
+        .estimators()
+        .iter()
+        .enumerate()
+        .map(|(e, def)| assemble_estimator(sc, e, def, &range, &parts))
+        .collect();
+    let frame_steps = frames::frame_reports(sc, opt)
+        .iter()
+        .map(|&i| steps[i])
+        .collect();
     let input_acov = if opt.input_lags > 0 {
-        reduce_acov(sc, &parts, runs, opt)
+        reduce_acov(sc, &parts, range.len(), opt)
     } else {
         Vec::new()
     };
@@ -488,8 +478,73 @@ pub(crate) fn assemble(
         runs: range,
         total_runs: sc.runs(),
         paths_run: sc.paths_run(),
+        frame_steps,
+        frame_targets: parts
+            .iter()
+            .flat_map(|p| p.lanes.iter())
+            .find(|l| !l.frame_targets.is_empty())
+            .map_or_else(Vec::new, |l| l.frame_targets.clone()),
         estimators,
         input_acov,
+    }
+}
+
+/// Estimator `e`'s results from the chunks' lanes: per-run values in run order, the earliest
+/// stop, the recorded run's paths and the frames.
+fn assemble_estimator(
+    sc: &Scenario,
+    e: usize,
+    def: &EstimatorDef,
+    range: &Range<usize>,
+    parts: &[Chunk],
+) -> EstimatorResults {
+    let nr = sc.report_steps().len();
+    let runs = range.len();
+    let names: Vec<String> = sc.metrics_of(def).iter().map(|m| m.to_string()).collect();
+    let mut values = vec![vec![0.0; nr * runs]; names.len()];
+    let mut stop: Option<&Stop> = None;
+    let mut paths = Vec::new();
+    let mut inputs = Vec::new();
+    let mut frames = Vec::new();
+    for part in parts {
+        let lane = &part.lanes[e];
+        let off = part.range.start - range.start;
+        place(
+            &mut values,
+            &lane.values,
+            nr,
+            runs,
+            off..off + part.range.len(),
+        );
+        if let Some(s) = &lane.stop {
+            if stop.is_none_or(|b| s.before(b)) {
+                stop = Some(s);
+            }
+        }
+        if !lane.paths.is_empty() {
+            paths.clone_from(&lane.paths);
+            inputs.clone_from(&lane.inputs);
+        }
+        frames.extend(lane.frames.iter().cloned());
+    }
+    let valid = stop.map_or(nr, |s| s.report);
+    for v in &mut values {
+        v[valid * runs..].fill(f64::NAN);
+    }
+    EstimatorResults {
+        label: def.label().to_string(),
+        kind: def.kind().to_string(),
+        metrics: names,
+        values,
+        outcome: stop.map_or(Outcome::Completed, |s| Outcome::Diverged {
+            step: s.step,
+            run: s.run,
+            cause: s.cause.clone(),
+        }),
+        valid,
+        paths,
+        inputs,
+        frames,
     }
 }
 
@@ -505,10 +560,11 @@ fn run_chunk(
     let record = range
         .contains(&sc.paths_run())
         .then(|| sc.paths_run() - range.start);
+    let frames = frames::plan(sc, &range, opt);
     let mut lanes: Vec<Lane> = sc
         .estimators()
         .iter()
-        .map(|def| Lane::new(sc, def, &shared, &z0, record, opt))
+        .map(|def| Lane::new(sc, def, &shared, &z0, (record, frames.as_ref()), opt))
         .collect();
     let report = sc.report_steps();
     let mut progress = Progress::new(obs, range.len(), sc.steps());

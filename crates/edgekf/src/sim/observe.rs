@@ -3,12 +3,17 @@
 //! ends. The engine's own outputs beyond the metrics — the recorded run's paths and inputs,
 //! the inputs' autocovariance of `edgekf fit-ar` — are observers; the step does not know them.
 
+use super::metrics::Measure;
 use super::LaneOut;
 
 /// Hooks into one estimator's loop over a chunk of runs (arrays N·D rows × runs).
 pub(crate) trait LaneObserver: Send {
     /// At a reported step, after estimation and before control: the positions `z_k`.
     fn on_report(&mut self, _z: &[f64]) {}
+    /// At a reported step of a loop that holds its estimator (the simulator's, not a swarm's
+    /// world), right after [`LaneObserver::on_report`]: what the metrics read (the estimator,
+    /// the step's faults and target).
+    fn on_measure(&mut self, _m: &Measure<'_>) {}
     /// After control at step `k`: the inputs `u_k`; `reported` when k is a reported step.
     fn on_input(&mut self, _k: usize, _u: &[f64], _reported: bool) {}
     /// Moves what it collected into the loop's output.

@@ -1,0 +1,192 @@
+//! Frames of a few runs for a viewer: at chosen reports, each estimator's true positions, its
+//! edge estimates `x̂_{k|k}` with their posterior covariances, and which links were measured and
+//! which agents present — what a player draws as the formation, its estimated neighbours and
+//! their 1σ ellipses (`frames.json`, the report page's player).
+
+use std::ops::Range;
+
+use super::metrics::Measure;
+use super::observe::LaneObserver;
+use super::{LaneOut, Options};
+use crate::scenario::Scenario;
+
+/// One run's frames for one estimator, frame-major (frame `f` of the [`super::Results`]'s
+/// `frame_steps`; fewer frames when the estimator diverged).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RunFrames {
+    /// The run (global index).
+    pub run: usize,
+    /// Frames recorded (fewer than asked for when the estimator diverged).
+    pub frames: usize,
+    /// Positions `z_k`: `[f · N·D + i·D + d]` [m].
+    pub positions: Vec<f64>,
+    /// Edge estimates `x̂_ij = ẑ_i − ẑ_j` as agent `i` holds them: `[f · M·D + e·D + d]` [m].
+    pub estimates: Vec<f64>,
+    /// Their posterior covariances, the upper triangle row by row (`D(D+1)/2` per edge:
+    /// `σ_xx, σ_xy, σ_yy` in 2-D): `[f · M·T + e·T + t]` [m²]; NaN where the estimator has
+    /// none ([`crate::estimate::Estimator::edge_covariance`]).
+    pub covariances: Vec<f64>,
+    /// Whether agent `i` measured edge `e = (i, j)` at that step (Li & Rajan's `β_ij,k`):
+    /// `[f · M + e]`.
+    pub observed: Vec<bool>,
+    /// Whether agent `i` was present: `[f · N + i]`.
+    pub present: Vec<bool>,
+}
+
+/// What a chunk records: the reports, and its runs among the recorded ones.
+pub(crate) struct FramePlan {
+    /// Indices into the reported steps, ascending.
+    pub(crate) reports: Vec<usize>,
+    /// (index in the chunk, global index) of each recorded run the chunk simulates.
+    pub(crate) runs: Vec<(usize, usize)>,
+}
+
+/// The reports of the frames of a study ([`Options::frame_runs`], [`Options::frame_limit`]).
+pub(crate) fn frame_reports(sc: &Scenario, opt: Options) -> Vec<usize> {
+    if opt.frame_runs == 0 {
+        return Vec::new();
+    }
+    thin_frames(&sc.path_reports(), opt.frame_limit)
+}
+
+/// The frames chunk `range` records, if any: runs `paths_run, paths_run + 1, …` (at most
+/// [`Options::frame_runs`] of them, within the study's runs).
+pub(crate) fn plan(sc: &Scenario, range: &Range<usize>, opt: Options) -> Option<FramePlan> {
+    let first = sc.paths_run();
+    let wanted = first..(first + opt.frame_runs).min(sc.runs());
+    let runs: Vec<(usize, usize)> = wanted
+        .filter(|g| range.contains(g))
+        .map(|g| (g - range.start, g))
+        .collect();
+    let reports = frame_reports(sc, opt);
+    (!runs.is_empty() && !reports.is_empty()).then_some(FramePlan { reports, runs })
+}
+
+/// Records [`RunFrames`] of some runs of a chunk at the chosen reports.
+pub(crate) struct FrameRecorder {
+    /// The reports to record (indices into the scenario's reported steps), ascending.
+    wanted: Vec<usize>,
+    /// Reports seen so far, and the next wanted one's position in `wanted`.
+    seen: usize,
+    next: usize,
+    d: usize,
+    runs: usize,
+    /// Per recorded run: its index in the chunk and its frames.
+    recorded: Vec<(usize, RunFrames)>,
+    /// The target formation `Z*_k` at the recorded reports, where there is one.
+    targets: Vec<f64>,
+    /// One edge's covariance, D × D.
+    cov: Vec<f64>,
+}
+
+impl FrameRecorder {
+    /// Records `plan` for `n` agents, `m` directed edges in `d` dimensions, `runs` runs in the
+    /// chunk (capacity for every frame reserved here: recording does not allocate).
+    pub(crate) fn new(plan: &FramePlan, (n, m, d): (usize, usize, usize), runs: usize) -> Self {
+        let wanted = plan.reports.clone();
+        let runs_of = &plan.runs;
+        let f = wanted.len();
+        let tri = d * (d + 1) / 2;
+        let recorded = runs_of
+            .iter()
+            .map(|&(local, global)| {
+                let rf = RunFrames {
+                    run: global,
+                    frames: 0,
+                    positions: Vec::with_capacity(f * n * d),
+                    estimates: Vec::with_capacity(f * m * d),
+                    covariances: Vec::with_capacity(f * m * tri),
+                    observed: Vec::with_capacity(f * m),
+                    present: Vec::with_capacity(f * n),
+                };
+                (local, rf)
+            })
+            .collect();
+        Self {
+            targets: Vec::with_capacity(f * n * d),
+            wanted,
+            seen: 0,
+            next: 0,
+            d,
+            runs,
+            recorded,
+            cov: vec![0.0; d * d],
+        }
+    }
+}
+
+impl LaneObserver for FrameRecorder {
+    fn on_measure(&mut self, ms: &Measure<'_>) {
+        let index = self.seen;
+        self.seen += 1;
+        if self.wanted.get(self.next) != Some(&index) {
+            return;
+        }
+        self.next += 1;
+        let (d, runs) = (self.d, self.runs);
+        let faults = ms.step.faults;
+        let (n, m) = (ms.framework.agents(), ms.framework.graph().num_edges());
+        let xhat = ms.estimator.estimates();
+        for (r, rf) in &mut self.recorded {
+            let r = *r;
+            rf.positions
+                .extend((0..n * d).map(|row| ms.z[row * runs + r]));
+            rf.estimates
+                .extend((0..m * d).map(|row| xhat[row * runs + r]));
+            for e in 0..m {
+                let has = ms.estimator.edge_covariance(e, r, &mut self.cov);
+                for a in 0..d {
+                    for b in a..d {
+                        rf.covariances
+                            .push(if has { self.cov[a * d + b] } else { f64::NAN });
+                    }
+                }
+            }
+            rf.observed.extend((0..m).map(|e| faults.observed(e, r)));
+            rf.present.extend((0..n).map(|i| faults.present(i, r)));
+            rf.frames += 1;
+        }
+        if let Some(t) = ms.step.target {
+            self.targets.extend_from_slice(&t.positions);
+        }
+    }
+
+    fn finish(self: Box<Self>, out: &mut LaneOut) {
+        out.frames = self.recorded.into_iter().map(|(_, rf)| rf).collect();
+        out.frame_targets = self.targets;
+    }
+}
+
+/// The reports (indices into the reported steps) of at most `limit` frames: the path reports
+/// `path` (as `paths.csv` keeps them), evenly thinned by index, the first and last kept.
+pub fn thin_frames(path: &[usize], limit: usize) -> Vec<usize> {
+    let len = path.len();
+    if len <= limit {
+        return path.to_vec();
+    }
+    if limit < 2 {
+        return path.iter().take(limit).copied().collect();
+    }
+    let mut out: Vec<usize> = (0..limit)
+        .map(|f| path[(f * (len - 1) + (limit - 1) / 2) / (limit - 1)])
+        .collect();
+    out.dedup();
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thin_frames;
+
+    #[test]
+    fn thinning_keeps_the_ends_and_at_most_the_limit() {
+        let path: Vec<usize> = (0..1000).map(|i| i * 3).collect();
+        let t = thin_frames(&path, 120);
+        assert_eq!(t.len(), 120);
+        assert_eq!((t[0], *t.last().unwrap()), (0, 2997));
+        assert!(t.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(thin_frames(&path[..50], 120), path[..50].to_vec());
+        assert_eq!(thin_frames(&path, 1), vec![0]);
+        assert!(thin_frames(&path, 0).is_empty());
+    }
+}
