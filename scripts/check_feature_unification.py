@@ -2,7 +2,8 @@
 """Check that CI's later test builds reuse what `cargo test` compiled.
 
 Cargo unifies a dependency's features over the packages one command selects. The swarm's
-and Clarabel's test commands select other packages and features than `cargo test`, so a
+and Clarabel's test commands and the Python extension's build select other packages and
+features than `cargo test`, so a
 dependency we share with Zenoh or Clarabel can get another feature set there, and then it and
 everything above it (nalgebra, our crates) compile a second time. `crates/workspace-hack`
 lists the union of those feature sets; this script compares, with `cargo tree`, the
@@ -16,16 +17,19 @@ import sys
 LATER = {
     "swarm tests": ["-p", "edgekf-swarm", "-p", "edgekf-cli", "--features", "edgekf-cli/swarm"],
     "clarabel tests": ["-p", "edgekf", "--features", "clarabel"],
+    "Python extension": ["-p", "edgekf-python", "--features", "workspace-hack"],
 }
 
 
 def features(args):
     """Package (name and version) -> its feature set, on the target side only (no build
     scripts' or proc-macros' dependencies: those compile for the host, apart)."""
-    out = subprocess.run(
-        ["cargo", "tree", "-q", "--locked", "-e", "normal,dev,no-proc-macro", "--prefix", "none",
-         "--no-dedupe", "-f", "{p}|{f}", *args],
-        check=True, capture_output=True, text=True).stdout
+    cmd = ["cargo", "tree", "-q", "--locked", "-e", "normal,dev,no-proc-macro", "--prefix", "none",
+           "--no-dedupe", "-f", "{p}|{f}", *args]
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"error: `{' '.join(cmd)}` failed:\n{run.stderr}")
+    out = run.stdout
     seen = {}
     for line in out.splitlines():
         if "|" not in line:

@@ -678,13 +678,7 @@ pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results>
     let total = (range.len() * sc.steps()) as u64;
     let p = Progress::new(total, sc.name());
     // A few runs frame by frame for the report page's player, within its byte budget.
-    let (frame_runs, frame_limit) = edgekf_io::frames::frame_options(sc);
-    let opt = sim::Options {
-        frame_runs,
-        frame_limit,
-        ..sim::Options::default()
-    };
-    let res = sim::run_range(sc, range, &p, opt);
+    let res = sim::run_range(sc, range, &p, edgekf_io::frames::frame_options(sc));
     p.0.finish_and_clear();
     Ok(res?)
 }
@@ -708,7 +702,9 @@ fn commit(mut st: io::Staged, prep: outdir::Prepared, id: &StudyId) -> Result<()
 /// Runs a sweep ([`sim::sweep`]) with a progress bar.
 fn simulate_sweep(sc: &Scenario) -> Result<sim::sweep::SweepResults> {
     let p = Progress::new(sim::sweep::total_run_steps(sc), sc.name());
-    let res = sim::sweep::run(sc, &p);
+    // The scenario as written frame by frame, as a study without a sweep.
+    let frames = edgekf_io::frames::frame_options(sc);
+    let res = sim::sweep::run_with(sc, &p, frames);
     p.0.finish_and_clear();
     Ok(res?)
 }

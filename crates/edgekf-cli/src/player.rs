@@ -23,7 +23,7 @@ pub fn section(o: &mut String, dir: &Path, frames_listed: bool) -> Result<()> {
     let path = dir.join("frames.json");
     if !frames_listed || !path.is_file() {
         o.push_str(
-            "<p class=\"note\">No frames in this directory (a sweep, a merged shard, a SLAM \
+            "<p class=\"note\">No frames in this directory (a merged shard, a SLAM \
              study, or a study too large for the page's budget: see <code>frames.json</code> in \
              the formats).</p>\n",
         );

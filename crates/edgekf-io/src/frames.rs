@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 
 use edgekf::scenario::Scenario;
-use edgekf::sim::{Results, RunFrames};
+use edgekf::sim::{Options, Results, RunFrames};
 
 /// The bytes `frames.json` may take (the report page embeds it): [`frame_options`] chooses the
 /// runs and frames to stay within it.
@@ -16,16 +16,16 @@ pub const FRAME_RUNS: usize = 3;
 pub const FRAME_LIMIT: usize = 150;
 /// Fewer frames than this are no animation: one run is recorded instead of several, and if
 /// even that does not fit, none.
-const MIN_FRAMES: usize = 24;
+pub const MIN_FRAMES: usize = 24;
 
 /// Bytes per written number (five significant digits and a comma: 8.3 on average in the shipped
 /// studies, so that the budget holds).
 const BYTES_PER_VALUE: usize = 9;
 
-/// The runs and the frame limit (`sim::Options::frame_runs`, `frame_limit`) for `sc` within
+/// The options that record frames of `sc` (`sim::Options::frame_runs`, `frame_limit`) within
 /// [`FRAMES_BUDGET`]: [`FRAME_RUNS`] runs if at least [`MIN_FRAMES`] frames of each fit (or
-/// every path report does), else one run, else none (`(0, 0)`).
-pub fn frame_options(sc: &Scenario) -> (usize, usize) {
+/// every path report does), else one run, else none (the default options).
+pub fn frame_options(sc: &Scenario) -> Options {
     let fw = sc.framework();
     let (n, m, d) = (fw.agents(), fw.graph().num_edges(), fw.dim());
     let values = n * d + m * d + m * d * (d + 1) / 2;
@@ -36,10 +36,14 @@ pub fn frame_options(sc: &Scenario) -> (usize, usize) {
         let fit = FRAMES_BUDGET / (per_frame * runs * estimators);
         let frames = fit.min(available);
         if frames >= MIN_FRAMES.min(available) && frames > 0 {
-            return (runs, frames);
+            return Options {
+                frame_runs: runs,
+                frame_limit: frames,
+                ..Options::default()
+            };
         }
     }
-    (0, 0)
+    Options::default()
 }
 
 /// A number with five significant digits (what a viewer needs; the CSVs keep full precision),

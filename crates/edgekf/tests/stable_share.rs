@@ -85,3 +85,32 @@ fn a_diverged_run_is_one_unstable_run_not_the_end_of_the_study() {
         .expect("a share");
     assert_eq!(share.mean, stable / runs as f64);
 }
+
+/// `sweep::run_with` records the frames of the scenario as written (the sweep's `base`, here
+/// also its one point) and changes no summary and no point's metrics.
+#[test]
+fn a_sweep_records_frames_of_the_scenario_as_written_and_nothing_else() {
+    let (sc, _) = fig13_sparse(4);
+    let plain = sweep::run(&sc, &Quiet).expect("sweep");
+    let extra = Options {
+        frame_runs: 2,
+        frame_limit: 10,
+        ..Options::default()
+    };
+    let framed = sweep::run_with(&sc, &Quiet, extra).expect("sweep");
+    // Compared as printed: NaN (a std of one value) is not equal to itself.
+    let same =
+        |a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| format!("{a:?}") == format!("{b:?}");
+    assert!(same(&plain.summary, &framed.summary), "summaries differ");
+    for (a, b) in plain.points.iter().zip(&framed.points) {
+        for (x, y) in a.results.estimators.iter().zip(&b.results.estimators) {
+            assert!(same(&x.values, &y.values), "{}: values differ", x.label);
+        }
+    }
+    assert_eq!(framed.base.frame_steps.len(), 10);
+    for e in &framed.base.estimators {
+        let runs: Vec<usize> = e.frames.iter().map(|f| f.run).collect();
+        assert_eq!(runs, vec![0, 1], "{}", e.label);
+    }
+    assert!(plain.base.estimators.iter().all(|e| e.frames.is_empty()));
+}

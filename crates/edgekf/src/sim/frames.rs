@@ -18,12 +18,12 @@ pub struct RunFrames {
     pub run: usize,
     /// Frames recorded (fewer than asked for when the estimator diverged).
     pub frames: usize,
-    /// Positions `z_k`: `[f · N·D + i·D + d]` [m].
+    /// Positions `z_k`: `[f · N·D + i·D + d]` (m).
     pub positions: Vec<f64>,
-    /// Edge estimates `x̂_ij = ẑ_i − ẑ_j` as agent `i` holds them: `[f · M·D + e·D + d]` [m].
+    /// Edge estimates `x̂_ij = ẑ_i − ẑ_j` as agent `i` holds them: `[f · M·D + e·D + d]` (m).
     pub estimates: Vec<f64>,
     /// Their posterior covariances, the upper triangle row by row (`D(D+1)/2` per edge:
-    /// `σ_xx, σ_xy, σ_yy` in 2-D): `[f · M·T + e·T + t]` [m²]; NaN where the estimator has
+    /// `σ_xx, σ_xy, σ_yy` in 2-D): `[f · M·T + e·T + t]` (m²); NaN where the estimator has
     /// none ([`crate::estimate::Estimator::edge_covariance`]).
     pub covariances: Vec<f64>,
     /// Whether agent `i` measured edge `e = (i, j)` at that step (Li & Rajan's `β_ij,k`):

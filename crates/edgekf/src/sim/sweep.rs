@@ -213,6 +213,29 @@ pub fn run_in(
     registry: &Registry,
     obs: &dyn Observer,
 ) -> Result<SweepResults, SweepError> {
+    run_in_with(sc, registry, obs, Options::default())
+}
+
+/// [`run`] with the frames of `extra` ([`Options::frame_runs`], [`Options::frame_limit`])
+/// recorded for the scenario as written (its `base` results), as `edgekf run` does for a
+/// study without a sweep.
+///
+/// # Errors
+/// [`SweepError`] when a value does not make a valid scenario or the observer cancels.
+pub fn run_with(
+    sc: &Scenario,
+    obs: &dyn Observer,
+    extra: Options,
+) -> Result<SweepResults, SweepError> {
+    run_in_with(sc, Registry::builtin(), obs, extra)
+}
+
+fn run_in_with(
+    sc: &Scenario,
+    registry: &Registry,
+    obs: &dyn Observer,
+    extra: Options,
+) -> Result<SweepResults, SweepError> {
     let base_sc = sc.without_sweep();
     let base_key = serde_json::to_string(&base_sc.to_resolved()).unwrap_or_default();
     let mut base = None;
@@ -223,12 +246,18 @@ pub fn run_in(
         per_run_divergence: sc.sweep().is_some_and(|s| s.stable.is_some()),
         ..Options::default()
     };
+    let base_opt = Options {
+        frame_runs: extra.frame_runs,
+        frame_limit: extra.frame_limit,
+        ..opt
+    };
     for (k, p) in sc.sweep_points_in(registry)?.into_iter().enumerate() {
-        let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, opt)?;
+        let is_base = base.is_none()
+            && serde_json::to_string(&p.scenario.to_resolved()).unwrap_or_default() == base_key;
+        let point_opt = if is_base { base_opt } else { opt };
+        let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, point_opt)?;
         summarise(sc, k, &res, &mut summary);
-        if base.is_none()
-            && serde_json::to_string(&p.scenario.to_resolved()).unwrap_or_default() == base_key
-        {
+        if is_base {
             base = Some(res.clone());
         }
         points.push(PointResults {
@@ -239,7 +268,7 @@ pub fn run_in(
     }
     let base = match base {
         Some(b) => b,
-        None => run_range(&base_sc, 0..base_sc.runs(), obs, opt)?,
+        None => run_range(&base_sc, 0..base_sc.runs(), obs, base_opt)?,
     };
     Ok(SweepResults {
         parameter: sc.sweep().map(|s| s.parameter.clone()).unwrap_or_default(),
