@@ -1,11 +1,15 @@
 //! The report page's player: a section that animates the study's `frames.json` on a canvas
-//! (`player.js`), self-contained like the rest of the page.
+//! (`player.js`), self-contained like the rest of the page (the file gzipped and base64-encoded
+//! into it).
 
 use std::fmt::Write as _;
 use std::fs;
 use std::path::Path;
 
+use std::io::Write as _;
+
 use anyhow::{Context, Result};
+use flate2::{write::GzEncoder, Compression};
 
 const PLAYER_JS: &str = include_str!("player.js");
 
@@ -65,9 +69,17 @@ pub fn section(o: &mut String, dir: &Path, frames_listed: bool) -> Result<()> {
          this step; red dashed: a link lost in either direction. Crosses: the target formation. \
          1× plays the run in 15 s. Keys: Space, ← →, Home, End. The link above points at the \
          moment shown (<code>#t=…&amp;run=…&amp;est=…</code>).</p>\n</div>\n\
-         <script type=\"application/json\" id=\"frames-data\">{}</script>\n\
+         <script type=\"application/octet-stream\" id=\"frames-data\" \
+         data-encoding=\"gzip+base64\">{}</script>\n\
          <script>{PLAYER_JS}</script>\n",
-        json.trim_end().replace("</", "<\\/")
+        crate::report::base64(&gzip(json.as_bytes())?)
     );
     Ok(())
+}
+
+/// `bytes` gzipped (the page's copy of `frames.json`: numbers as text compress 3–4×).
+fn gzip(bytes: &[u8]) -> Result<Vec<u8>> {
+    let mut gz = GzEncoder::new(Vec::new(), Compression::best());
+    gz.write_all(bytes)?;
+    Ok(gz.finish()?)
 }

@@ -13,14 +13,14 @@ pub const FRAMES_BUDGET: usize = 2_000_000;
 /// At most this many runs are recorded …
 pub const FRAME_RUNS: usize = 3;
 /// … and this many frames.
-pub const FRAME_LIMIT: usize = 150;
+pub const FRAME_LIMIT: usize = 100;
 /// Fewer frames than this are no animation: one run is recorded instead of several, and if
 /// even that does not fit, none.
 pub const MIN_FRAMES: usize = 24;
 
-/// Bytes per written number (five significant digits and a comma: 8.3 on average in the shipped
+/// Bytes per written number (four significant digits and a comma: 7.3 on average in the shipped
 /// studies, so that the budget holds).
-const BYTES_PER_VALUE: usize = 9;
+const BYTES_PER_VALUE: usize = 8;
 
 /// The options that record frames of `sc` (`sim::Options::frame_runs`, `frame_limit`) within
 /// [`FRAMES_BUDGET`]: [`FRAME_RUNS`] runs if at least [`MIN_FRAMES`] frames of each fit (or
@@ -46,14 +46,14 @@ pub fn frame_options(sc: &Scenario) -> Options {
     Options::default()
 }
 
-/// A number with five significant digits (what a viewer needs; the CSVs keep full precision),
-/// `null` when not finite.
+/// A number with four significant digits (what a viewer needs: 0.1 mm on a formation of metres;
+/// the CSVs keep full precision), `null` when not finite.
 fn num(s: &mut String, v: f64) {
     if !v.is_finite() {
         s.push_str("null");
         return;
     }
-    let r: f64 = format!("{v:.4e}").parse().unwrap_or(v);
+    let r: f64 = format!("{v:.3e}").parse().unwrap_or(v);
     if r != 0.0 && r.abs() < 1e-3 {
         let _ = write!(s, "{r:e}");
     } else {
