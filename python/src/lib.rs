@@ -196,13 +196,16 @@ fn simulate(
             }
             let _done = Done(&done);
             pool.install(|| -> anyhow::Result<(Results, Option<SweepResults>)> {
+                // A few runs frame by frame, as the CLI records them (`save` writes the CLI's
+                // files, frames.json included).
+                let frames = edgekf_io::frames::frame_options(sc);
                 if sc.sweep().is_some() {
                     // The scenario at every value of its sweep, then as written (the CLI's
                     // `run` of a sweep).
-                    let sw = sim::sweep::run(sc, &obs)?;
+                    let sw = sim::sweep::run_with(sc, &obs, frames)?;
                     Ok((sw.base.clone(), Some(sw)))
                 } else {
-                    let res = sim::run_range(sc, 0..sc.runs(), &obs, sim::Options::default())?;
+                    let res = sim::run_range(sc, 0..sc.runs(), &obs, frames)?;
                     Ok((res, None))
                 }
             })

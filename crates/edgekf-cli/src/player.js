@@ -171,6 +171,16 @@
         ctx.lineTo(tr.x(z[j3 * D + a[0]]), tr.y(z[j3 * D + a[1]])); ctx.stroke();
       }
       ctx.setLineDash([]);
+      // The estimated formation: each edge as its owner estimates it, from z_i to z_i − x̂_ij.
+      ctx.lineWidth = 1; ctx.globalAlpha = 0.45;
+      for (var e1 = 0; e1 < M; e1++) {
+        var o1 = data.edges[e1][0];
+        if (here[o1] !== '1' || xh[e1 * D] === null) { continue; }
+        var zx = z[o1 * D + a[0]], zy = z[o1 * D + a[1]];
+        ctx.strokeStyle = colour(o1); ctx.beginPath(); ctx.moveTo(tr.x(zx), tr.y(zy));
+        ctx.lineTo(tr.x(zx - xh[e1 * D + a[0]]), tr.y(zy - xh[e1 * D + a[1]])); ctx.stroke();
+      }
+      ctx.globalAlpha = 1;
       // Agents: leaders square, departed hollow grey.
       var away = 0;
       for (var i4 = 0; i4 < N; i4++) {

@@ -62,8 +62,9 @@ pub fn section(o: &mut String, dir: &Path, frames_listed: bool) -> Result<()> {
          <a id=\"player-link\" href=\"#t=0\">link to this moment</a>\
          </div>\n\
          <p class=\"note\" id=\"player-status\">Discs: agents at their true positions (squares: \
-         leaders; hollow grey: departed), with their paths so far. Small dots with ellipses: \
-         each agent's estimate of a neighbour's position, <i>z<sub>i</sub> − x̂<sub>ij</sub></i>, \
+         leaders; hollow grey: departed), with their paths so far. Thin coloured lines, dots \
+         and ellipses: the estimated formation — each agent's estimate of a neighbour's \
+         position, <i>z<sub>i</sub> − x̂<sub>ij</sub></i>, drawn from the agent, \
          and its 1σ ellipse (scalable: a filter's σ is often millimetres on a formation of metres), in \
          the owner's colour, drawn over the agents. Grey lines: links measured at \
          this step; red dashed: a link lost in either direction. Crosses: the target formation. \
