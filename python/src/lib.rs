@@ -341,6 +341,84 @@ impl PyRes {
             .collect::<Vec<_>>()
             .into_pyarray(py)
     }
+    /// The steps of the recorded frames (time = step · Δt); empty when none were recorded.
+    fn frame_steps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
+        let steps: Vec<u64> = self.res.frame_steps.iter().map(|&k| k as u64).collect();
+        steps.into_pyarray(py)
+    }
+    /// The target formation `Z*_k` at the frames (frames × agents × D), `None` without a
+    /// maneuver.
+    fn frame_targets<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray3<f64>>>> {
+        let (n, d) = (self.sc.framework().agents(), self.sc.framework().dim());
+        if self.res.frame_targets.is_empty() {
+            return Ok(None);
+        }
+        let f = self.res.frame_targets.len() / (n * d).max(1);
+        let a = self.res.frame_targets.clone().into_pyarray(py);
+        a.reshape([f, n, d]).map(Some)
+    }
+    /// The directed edges `(i, j)` (edges × 2), in the order of the frames' estimates.
+    fn edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u64>>> {
+        let edges = self.sc.framework().graph().edges();
+        let flat: Vec<u64> = edges
+            .iter()
+            .flat_map(|&(i, j)| [i as u64, j as u64])
+            .collect();
+        flat.into_pyarray(py).reshape([edges.len(), 2])
+    }
+    /// The recorded runs of one estimator frame by frame (`RunFrames`): a list of
+    /// `(run, positions F×N×D, estimates F×M×D, covariances F×M×D×D, observed F×M,
+    /// present F×N)`, the covariances expanded from their upper triangles.
+    #[allow(clippy::type_complexity)]
+    fn frames<'py>(
+        &self,
+        py: Python<'py>,
+        label: &str,
+    ) -> PyResult<
+        Vec<(
+            usize,
+            Bound<'py, PyAny>,
+            Bound<'py, PyAny>,
+            Bound<'py, PyAny>,
+            Bound<'py, PyAny>,
+            Bound<'py, PyAny>,
+        )>,
+    > {
+        let e = self.est(label)?;
+        let fw = self.sc.framework();
+        let (n, m, d) = (fw.agents(), fw.graph().num_edges(), fw.dim());
+        let t = d * (d + 1) / 2;
+        let mut out = Vec::with_capacity(e.frames.len());
+        for rf in &e.frames {
+            let f = rf.frames;
+            let mut cov = vec![0.0; f * m * d * d];
+            for (full, tri) in cov.chunks_mut(d * d).zip(rf.covariances.chunks(t)) {
+                let mut k = 0;
+                for r in 0..d {
+                    for c in r..d {
+                        full[r * d + c] = tri[k];
+                        full[c * d + r] = tri[k];
+                        k += 1;
+                    }
+                }
+            }
+            let arr = |v: Vec<f64>, dims: &[usize]| -> PyResult<Bound<'py, PyAny>> {
+                Ok(v.into_pyarray(py).reshape(dims.to_vec())?.into_any())
+            };
+            let flags = |v: &[bool], w: usize| -> PyResult<Bound<'py, PyAny>> {
+                Ok(v.to_vec().into_pyarray(py).reshape([f, w])?.into_any())
+            };
+            out.push((
+                rf.run,
+                arr(rf.positions[..f * n * d].to_vec(), &[f, n, d])?,
+                arr(rf.estimates[..f * m * d].to_vec(), &[f, m, d])?,
+                arr(cov, &[f, m, d, d])?,
+                flags(&rf.observed[..f * m], m)?,
+                flags(&rf.present[..f * n], n)?,
+            ));
+        }
+        Ok(out)
+    }
     /// Positions of the recorded run, reported steps × agents × D.
     fn paths<'py>(&self, py: Python<'py>, label: &str) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let e = self.est(label)?;

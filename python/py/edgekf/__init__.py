@@ -187,6 +187,75 @@ class Result:
         """Inputs u of the recorded run: float64 array (reported steps × agents × D)."""
         return self._r.inputs(estimator)
 
+    @property
+    def frame_steps(self) -> np.ndarray:
+        """Steps k of the recorded frames, as int64 (time ``k * dt``); empty when none were.
+
+        A few runs (at most 3) are recorded frame by frame (at most 100 frames, the first and last
+        reported steps kept), as the CLI records them for ``frames.json`` and the report's player.
+        """
+        return self._r.frame_steps().astype(np.int64)
+
+    def frames(self, estimator: str) -> List[Dict[str, Any]]:
+        """The recorded runs of one estimator, frame by frame (``docs/formats.md``, frames.json).
+
+        One dict per recorded run: ``run`` (its index), ``positions`` (frames × agents × D,
+        true ``z_k`` [m]), ``estimates`` (frames × edges × D: ``x̂_ij`` as agent *i* holds it
+        [m]), ``covariances`` (frames × edges × D × D, its posterior covariance [m²]; NaN where
+        the estimator has none), ``observed`` (frames × edges, bool: agent *i* measured edge
+        (*i*, *j*)) and ``present`` (frames × agents, bool). Edges are in the order of
+        :attr:`edges`; an estimator that diverged has fewer frames than :attr:`frame_steps`.
+        """
+        out = []
+        for run_, pos, est, cov, obs, pres in self._r.frames(estimator):
+            out.append(
+                {
+                    "run": run_,
+                    "positions": pos,
+                    "estimates": est,
+                    "covariances": cov,
+                    "observed": obs,
+                    "present": pres,
+                }
+            )
+        return out
+
+    @property
+    def frame_targets(self) -> Optional[np.ndarray]:
+        """The target formation ``Z*_k`` at the frames (frames × agents × D), ``None`` without
+        a maneuver."""
+        return self._r.frame_targets()
+
+    @property
+    def edges(self) -> np.ndarray:
+        """The directed edges ``(i, j)`` (edges × 2, int64): agent *i* measures ``z_i − z_j``."""
+        return self._r.edges().astype(np.int64)
+
+    def to_rerun(
+        self,
+        path: Union[str, "os.PathLike[str]"],
+        *,
+        estimators: Optional[Sequence[str]] = None,
+        runs: Optional[Sequence[int]] = None,
+    ) -> None:
+        """Writes a Rerun recording (``.rrd``) of the run: open it with ``rerun FILE.rrd``.
+
+        On the time line ``time`` (seconds of simulated time; also ``step``): per recorded run
+        and estimator the true positions, the formation each agent estimates (lines from agent
+        *i* to where it puts neighbour *j*, ``z_i − x̂_ij``), 1σ ellipses (2-D) or ellipsoids
+        (3-D) of those estimates, measured and lost links, departed agents; the target
+        formation where there is a maneuver; and every metric's mean across runs as a time
+        series. The entity paths are in the guide ("Python", Rerun recordings).
+
+        ``estimators`` and ``runs`` (indices of recorded runs, see :meth:`frames`) select; the
+        default is everything recorded. Needs the ``rerun-sdk`` package (``pip install
+        'edgekf[rerun]'``): ``ImportError`` otherwise. Written to a temporary file, then
+        renamed, so ``path`` is complete or untouched.
+        """
+        from . import _rerun
+
+        _rerun.write(self, os.fspath(path), estimators, runs)
+
     def status(self, estimator: str) -> Dict[str, Any]:
         """How an estimator ended: ``{"status": "completed"|"diverged", "step", "run", "cause"}``."""
         s, step, run_, cause = self._r.status(estimator)
