@@ -360,9 +360,14 @@ fn free_udp_base(n: usize) -> Result<u16> {
     bail!("no {n} consecutive free UDP ports on 127.0.0.1")
 }
 
-/// Zenoh's runtimes (RON, read by the `zenoh` crate at start-up) for a swarm on one machine.
+/// Zenoh's runtimes (RON, read by the `zenoh` crate at start-up) for a swarm on one machine:
+/// the acceptor, application and network runtimes handed over to the receiving one, so that a
+/// process's Zenoh work is two threads (rx and tx), not five. A UDP datagram that comes to a
+/// listener is read by the acceptor's task and handed to the link's receiving task: on one
+/// thread that is no wake-up between threads (half the swarm's context switches went there).
+/// The transmitting runtime stays apart: handed over too, the sessions do not open.
 const ZENOH_RUNTIME_ONE_MACHINE: &str = "(rx:(worker_threads:1),tx:(max_blocking_threads:1),\
-    acc:(worker_threads:1),app:(worker_threads:1),net:(worker_threads:1))";
+    acc:(handover:rx),app:(handover:rx),net:(handover:rx))";
 
 /// A child process of the swarm, killed with the parent (PR_SET_PDEATHSIG) and on Ctrl-C.
 fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child> {

@@ -2,6 +2,7 @@
 //! session and the mesh of its neighbours.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::sync::MutexGuard;
 use std::time::{Duration, Instant};
 
 use edgekf::agent::{Agent, Exchange, Output, Sensing};
@@ -10,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
-use crate::events::{Chan, Event, Events};
+use crate::events::{self, Chan, Event, Events, Slot};
 use crate::keys::Keys;
 use crate::stats::{Link, LinkStats};
 use crate::wire::{self, ScenarioId};
@@ -144,26 +145,31 @@ impl<T> Mailbox<T> {
     }
 }
 
-/// An agent process's state between the two sessions.
-struct Node {
+/// What an agent hears, taken in Zenoh's callbacks ([`crate::events`]).
+struct Inbox {
     id: ScenarioId,
-    me: usize,
-    keys: Keys,
-    o: AgentOptions,
-    agent: Agent,
-    neighbours: Vec<usize>,
-    world: Session,
-    mesh: Session,
-    events: Events,
     inputs: Mailbox<Output>,
     exchanges: Mailbox<Exchange>,
-    sensing: BTreeMap<usize, (Sensing, u64, Instant)>,
+    sensing: BTreeMap<usize, Sensing>,
     sensing_stats: LinkStats,
     departed: BTreeSet<usize>,
     world_alive: bool,
     stopped: Option<Option<String>>,
     started: bool,
     hellos: BTreeSet<usize>,
+}
+
+/// An agent process's state between the two sessions.
+struct Node {
+    me: usize,
+    id: ScenarioId,
+    keys: Keys,
+    o: AgentOptions,
+    agent: Agent,
+    neighbours: Vec<usize>,
+    world: Session,
+    mesh: Session,
+    events: Events<Inbox>,
     sent_inputs: u64,
     sent_exchanges: u64,
 }
@@ -192,7 +198,19 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     let keys = Keys::new(&o.endpoints.swarm);
     let world = o.endpoints.open_agent_world()?;
     let mesh = o.endpoints.open_mesh(o.id, &peers)?;
-    let mut events = Events::new();
+    let id = ScenarioId::of(sc);
+    let mut events = Events::new(Inbox {
+        id: id.clone(),
+        inputs: Mailbox::new("input", &neighbours),
+        exchanges: Mailbox::new("exchange", &neighbours),
+        sensing: BTreeMap::new(),
+        sensing_stats: LinkStats::default(),
+        departed: BTreeSet::new(),
+        world_alive: false,
+        stopped: None,
+        started: false,
+        hellos: BTreeSet::new(),
+    });
     events.subscribe(&world, &keys.sensing(o.id), Chan::Sensing)?;
     events.subscribe(&world, &keys.control(), Chan::Control)?;
     events.liveliness(&world, &keys.alive_world())?;
@@ -209,24 +227,15 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
             detail: e.to_string(),
         })?;
     let mut node = Node {
-        id: ScenarioId::of(sc),
         me: o.id,
+        id,
         keys,
         o: o.clone(),
         agent,
-        inputs: Mailbox::new("input", &neighbours),
-        exchanges: Mailbox::new("exchange", &neighbours),
         neighbours,
         world,
         mesh,
         events,
-        sensing: BTreeMap::new(),
-        sensing_stats: LinkStats::default(),
-        departed: BTreeSet::new(),
-        world_alive: false,
-        stopped: None,
-        started: false,
-        hellos: BTreeSet::new(),
         sent_inputs: 0,
         sent_exchanges: 0,
     };
@@ -234,6 +243,78 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     let result = node.steps(sc.steps());
     node.report_links();
     result
+}
+
+impl events::Inbox for Inbox {
+    fn take(&mut self, ev: Event<'_>) -> Result<(), SwarmError> {
+        let from = Keys::agent_of(ev.key);
+        match ev.chan {
+            Chan::Alive(up) => {
+                if ev.key.ends_with("/alive/world") {
+                    self.world_alive = up;
+                    if !up && self.started && self.stopped.is_none() {
+                        self.stopped = Some(Some("the world left".into()));
+                    }
+                } else if let (Some(j), false) = (from, up) {
+                    self.departed.insert(j);
+                }
+            }
+            Chan::Hello => {
+                wire::decode::<usize>(&self.id, ev.key, ev.bytes)?;
+                if let Some(j) = from {
+                    self.hellos.insert(j);
+                }
+            }
+            Chan::Control => match wire::decode::<Control>(&self.id, ev.key, ev.bytes)?.0 {
+                Control::Start => self.started = true,
+                Control::Departed { agent } => {
+                    self.departed.insert(agent);
+                }
+                Control::Stop { error } => self.stopped = Some(error),
+            },
+            Chan::Sensing => {
+                let (s, sent): (Sensing, u64) = wire::decode(&self.id, ev.key, ev.bytes)?;
+                let lat = (wire::now_ns().saturating_sub(sent)) as f64 / 1000.0;
+                self.sensing_stats.arrived(lat, false);
+                self.sensing.insert(s.k, s);
+            }
+            Chan::Input => {
+                let (m, sent): (Output, u64) = wire::decode(&self.id, ev.key, ev.bytes)?;
+                if let Some(j) = from {
+                    self.inputs.put(j, m.k, m, sent, ev.at);
+                }
+            }
+            Chan::Exchange => {
+                let (m, sent): (Exchange, u64) = wire::decode(&self.id, ev.key, ev.bytes)?;
+                if let Some(j) = from {
+                    self.exchanges.put(j, m.k, m, sent, ev.at);
+                }
+            }
+            Chan::Output | Chan::Status | Chan::Mesh => {}
+        }
+        Ok(())
+    }
+}
+
+impl Inbox {
+    fn hears_everyone(&self, neighbours: &[usize]) -> bool {
+        neighbours
+            .iter()
+            .all(|j| self.hellos.contains(j) || self.departed.contains(j))
+    }
+
+    /// Whether step `k`'s messages (inputs or exchanges) of the `expected` neighbours are here
+    /// (or their senders departed).
+    fn has_mail(&self, k: usize, expected: &[usize], inputs: bool) -> bool {
+        expected.iter().all(|&j| {
+            self.departed.contains(&j)
+                || if inputs {
+                    self.inputs.has(j, k)
+                } else {
+                    self.exchanges.has(j, k)
+                }
+        })
+    }
 }
 
 impl Node {
@@ -257,74 +338,21 @@ impl Node {
             })
     }
 
-    /// Takes one event into the node's state.
-    fn take(&mut self, ev: Event) -> Result<(), SwarmError> {
-        let from = Keys::agent_of(&ev.key);
-        match ev.chan {
-            Chan::Alive(up) => {
-                if ev.key.ends_with("/alive/world") {
-                    self.world_alive = up;
-                    if !up && self.started && self.stopped.is_none() {
-                        self.stopped = Some(Some("the world left".into()));
-                    }
-                } else if let (Some(j), false) = (from, up) {
-                    self.departed.insert(j);
-                }
-            }
-            Chan::Hello => {
-                wire::decode::<usize>(&self.id, &ev.key, &ev.bytes)?;
-                if let Some(j) = from {
-                    self.hellos.insert(j);
-                }
-            }
-            Chan::Control => match wire::decode::<Control>(&self.id, &ev.key, &ev.bytes)?.0 {
-                Control::Start => self.started = true,
-                Control::Departed { agent } => {
-                    self.departed.insert(agent);
-                }
-                Control::Stop { error } => self.stopped = Some(error),
-            },
-            Chan::Sensing => {
-                let (s, sent): (Sensing, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
-                let lat = (wire::now_ns().saturating_sub(sent)) as f64 / 1000.0;
-                self.sensing_stats.arrived(lat, false);
-                self.sensing.insert(s.k, (s, sent, ev.at));
-            }
-            Chan::Input => {
-                let (m, sent): (Output, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
-                if let Some(j) = from {
-                    self.inputs.put(j, m.k, m, sent, ev.at);
-                }
-            }
-            Chan::Exchange => {
-                let (m, sent): (Exchange, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
-                if let Some(j) = from {
-                    self.exchanges.put(j, m.k, m, sent, ev.at);
-                }
-            }
-            Chan::Output | Chan::Status | Chan::Mesh => {}
-        }
-        Ok(())
+    fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {
+        self.events.lock()
     }
 
-    /// Waits for events until `done(self)` or `deadline`; `false` when the deadline passed.
+    /// Waits until `done` or `deadline`; `false` when the deadline passed or the world stopped
+    /// the swarm first.
     fn wait_until(
-        &mut self,
+        &self,
         deadline: Instant,
-        done: impl Fn(&Node) -> bool,
+        done: impl Fn(&Inbox) -> bool + Clone + Send + 'static,
     ) -> Result<bool, SwarmError> {
-        loop {
-            if done(self) {
-                return Ok(true);
-            }
-            if self.stopped.is_some() {
-                return Ok(false);
-            }
-            match self.events.next_before(deadline) {
-                Some(ev) => self.take(ev)?,
-                None => return Ok(done(self)),
-            }
-        }
+        let d = done.clone();
+        self.events
+            .wait_until(deadline, move |s| s.stopped.is_some() || d(s))?;
+        Ok(done(&self.inbox().state))
     }
 
     /// Before the first step: hello to the neighbours until every one is heard and the world
@@ -333,11 +361,18 @@ impl Node {
         let deadline = Instant::now() + self.o.timeout;
         let mut next_hello = Instant::now();
         let mut next_declare = Instant::now() + Duration::from_secs(1);
-        while !self.started {
-            if let Some(e) = &self.stopped {
-                let why = e
-                    .clone()
-                    .unwrap_or_else(|| "it stopped before the start".into());
+        loop {
+            let (started, stopped, ready) = {
+                let g = self.inbox();
+                let s = &g.state;
+                let ready = s.world_alive && s.hears_everyone(&self.neighbours);
+                (s.started, s.stopped.clone(), ready)
+            };
+            if started {
+                return Ok(());
+            }
+            if let Some(e) = stopped {
+                let why = e.unwrap_or_else(|| "it stopped before the start".into());
                 return Err(SwarmError::Stopped(why));
             }
             if Instant::now() >= deadline {
@@ -349,7 +384,7 @@ impl Node {
                     &self.keys.hello(self.me),
                     wire::encode(&self.id, &self.me),
                 )?;
-                if self.world_alive && self.hears_everyone() {
+                if ready {
                     let status = self.keys.status(self.me);
                     self.put(true, &status, wire::encode(&self.id, &Status::Ready))?;
                 }
@@ -365,16 +400,17 @@ impl Node {
             let until = next_hello.min(deadline);
             self.wait_until(until, |n| n.started)?;
         }
-        Ok(())
     }
 
     fn redeclare_unheard(&mut self) -> Result<(), SwarmError> {
-        let unheard: Vec<usize> = self
-            .neighbours
-            .iter()
-            .filter(|j| !self.hellos.contains(j) && !self.departed.contains(j))
-            .copied()
-            .collect();
+        let unheard: Vec<usize> = {
+            let g = self.inbox();
+            self.neighbours
+                .iter()
+                .filter(|j| !g.state.hellos.contains(j) && !g.state.departed.contains(j))
+                .copied()
+                .collect()
+        };
         for j in unheard {
             let key = self.keys.mesh_of(j);
             self.events.subscribe(&self.mesh, &key, Chan::Mesh)?;
@@ -382,15 +418,10 @@ impl Node {
         Ok(())
     }
 
-    fn hears_everyone(&self) -> bool {
-        self.neighbours
-            .iter()
-            .all(|j| self.hellos.contains(j) || self.departed.contains(j))
-    }
-
     fn meet_timeout(&self) -> SwarmError {
         let o = &self.o;
-        if !self.world_alive {
+        let g = self.inbox();
+        if !g.state.world_alive {
             return SwarmError::timeout(
                 format!(
                     "agent {}: no world answered at {}",
@@ -403,7 +434,7 @@ impl Node {
         let missing: Vec<usize> = self
             .neighbours
             .iter()
-            .filter(|j| !self.hellos.contains(j))
+            .filter(|j| !g.state.hellos.contains(j))
             .copied()
             .collect();
         if !missing.is_empty() {
@@ -434,14 +465,17 @@ impl Node {
                 self.await_mail(k - 1, &expected, true)?;
             }
             let ex = {
-                let inputs = &self.inputs;
-                self.agent
-                    .begin(&sensing, |j| inputs.get(j, k.saturating_sub(1)))?
+                let mut g = self.events.lock();
+                let inputs = &mut g.state.inputs;
+                let ex = self
+                    .agent
+                    .begin(&sensing, |j| inputs.get(j, k.saturating_sub(1)));
+                if k > 1 {
+                    // Taken: what comes now of step k − 1 is late.
+                    inputs.close(k - 1, &expected);
+                }
+                ex?
             };
-            if k > 1 {
-                // Taken: what comes now of step k − 1 is late.
-                self.inputs.close(k - 1, &expected);
-            }
             let ex_sent = ex.is_some();
             if let Some(x) = ex {
                 self.put(
@@ -452,30 +486,17 @@ impl Node {
                 self.sent_exchanges += 1;
                 self.await_mail(k, &expected, false)?;
             }
-            let mut out = {
-                let exchanges = &self.exchanges;
-                self.agent.finish(|j| exchanges.get(j, k))
+            let out = {
+                let mut g = self.events.lock();
+                let exchanges = &mut g.state.exchanges;
+                let out = self.agent.finish(|j| exchanges.get(j, k));
+                if ex_sent {
+                    exchanges.close(k, &expected);
+                }
+                out
             };
-            finite_or_breakdown(&mut out);
-            if ex_sent {
-                self.exchanges.close(k, &expected);
-            }
-            let mut input = out.clone();
-            for l in &mut input.lanes {
-                l.report = None;
-            }
-            self.put(
-                false,
-                &self.keys.input(self.me),
-                wire::encode(&self.id, &input),
-            )?;
-            self.sent_inputs += 1;
-            self.put(
-                true,
-                &self.keys.output(self.me),
-                wire::encode(&self.id, &out),
-            )?;
-            if self.stopped.is_some() {
+            self.send_output(out)?;
+            if self.inbox().state.stopped.is_some() {
                 return self.stop_result();
             }
         }
@@ -485,8 +506,28 @@ impl Node {
         self.stop_result()
     }
 
+    /// Sends this step's input to the neighbours (mesh) and its output to the world.
+    fn send_output(&mut self, mut out: Output) -> Result<(), SwarmError> {
+        finite_or_breakdown(&mut out);
+        let mut input = out.clone();
+        for l in &mut input.lanes {
+            l.report = None;
+        }
+        self.put(
+            false,
+            &self.keys.input(self.me),
+            wire::encode(&self.id, &input),
+        )?;
+        self.sent_inputs += 1;
+        self.put(
+            true,
+            &self.keys.output(self.me),
+            wire::encode(&self.id, &out),
+        )
+    }
+
     fn stop_result(&self) -> Result<(), SwarmError> {
-        match &self.stopped {
+        match &self.inbox().state.stopped {
             Some(Some(e)) => Err(SwarmError::Stopped(e.clone())),
             _ => Ok(()),
         }
@@ -494,18 +535,22 @@ impl Node {
 
     /// The neighbours whose messages this step should bring: present, and not departed.
     fn expected(&self, s: &Sensing) -> Vec<usize> {
+        let g = self.inbox();
         self.neighbours
             .iter()
-            .filter(|&&j| s.present.get(j).copied().unwrap_or(false) && !self.departed.contains(&j))
+            .filter(|&&j| {
+                s.present.get(j).copied().unwrap_or(false) && !g.state.departed.contains(&j)
+            })
             .copied()
             .collect()
     }
 
     fn await_sensing(&mut self, k: usize) -> Result<Option<Sensing>, SwarmError> {
         let deadline = Instant::now() + self.o.timeout;
-        let got = self.wait_until(deadline, |n| n.sensing.contains_key(&k))?;
+        let got = self.wait_until(deadline, move |n| n.sensing.contains_key(&k))?;
+        let mut g = self.inbox();
         if !got {
-            if self.stopped.is_some() {
+            if g.state.stopped.is_some() {
                 return Ok(None);
             }
             return Err(SwarmError::timeout(
@@ -514,24 +559,13 @@ impl Node {
                 "did the world stop or lose its connection?",
             ));
         }
-        self.sensing.retain(|&s, _| s >= k);
-        Ok(self.sensing.remove(&k).map(|(s, _, _)| s))
+        g.state.sensing.retain(|&s, _| s >= k);
+        Ok(g.state.sensing.remove(&k))
     }
 
     /// Waits for step `k`'s messages (inputs or exchanges) of the `expected` neighbours, as the
     /// mode allows.
     fn await_mail(&mut self, k: usize, expected: &[usize], inputs: bool) -> Result<(), SwarmError> {
-        let have = |n: &Node| {
-            let departed = |j: &usize| n.departed.contains(j);
-            expected.iter().all(|&j| {
-                departed(&j)
-                    || if inputs {
-                        n.inputs.has(j, k)
-                    } else {
-                        n.exchanges.has(j, k)
-                    }
-            })
-        };
         let (wait, bounded) = match (self.o.mode, self.o.lossy) {
             (Mode::Lockstep, false) => (self.o.timeout, true),
             (Mode::Lockstep, true) => (self.o.grace, false),
@@ -540,18 +574,13 @@ impl Node {
             (Mode::Realtime { .. }, _) if inputs => (Duration::ZERO, false),
             (Mode::Realtime { period }, _) => (period / 2, false),
         };
-        let got = self.wait_until(Instant::now() + wait, have)?;
-        if !got && bounded && self.stopped.is_none() {
+        let want = expected.to_vec();
+        let got = self.wait_until(Instant::now() + wait, move |n| n.has_mail(k, &want, inputs))?;
+        let g = self.inbox();
+        if !got && bounded && g.state.stopped.is_none() {
             let missing: Vec<usize> = expected
                 .iter()
-                .filter(|&&j| {
-                    !(self.departed.contains(&j)
-                        || if inputs {
-                            self.inputs.has(j, k)
-                        } else {
-                            self.exchanges.has(j, k)
-                        })
-                })
+                .filter(|&&j| !g.state.has_mail(k, &[j], inputs))
                 .copied()
                 .collect();
             return Err(SwarmError::timeout(
@@ -569,19 +598,18 @@ impl Node {
 
     /// Sends the links into this agent (and what it sent) to the world.
     fn report_links(&mut self) {
-        // Late arrivals still in the queue count as late.
+        // Late arrivals still on their way count as late.
         let deadline = Instant::now() + Duration::from_millis(50);
-        while let Some(ev) = self.events.next_before(deadline) {
-            if self.take(ev).is_err() {
-                break;
-            }
-        }
+        let _ = self.events.wait_until(deadline, |_| false);
         let sent_in: BTreeMap<usize, u64> = BTreeMap::new();
-        let mut links = self.inputs.links(self.me, &sent_in);
-        if self.sent_exchanges > 0 || self.exchanges.stats.values().any(|s| s.received > 0) {
-            links.extend(self.exchanges.links(self.me, &sent_in));
+        let g = self.inbox();
+        let s = &g.state;
+        let mut links = s.inputs.links(self.me, &sent_in);
+        if self.sent_exchanges > 0 || s.exchanges.stats.values().any(|s| s.received > 0) {
+            links.extend(s.exchanges.links(self.me, &sent_in));
         }
-        let mut sensing = self.sensing_stats.clone();
+        let mut sensing = s.sensing_stats.clone();
+        drop(g);
         sensing.sent = sensing.received;
         links.push((
             Link {
@@ -622,8 +650,8 @@ impl Node {
 }
 
 /// A lane whose input or report is not finite (its loop diverged) reports a breakdown, and
-/// its values go out as zeros: JSON has no NaN or infinity, and the world stops that lane as
-/// the simulator does.
+/// its values go out as zeros: the world stops that lane as the simulator does, and every
+/// encoding of the report (the JSON of `edgekf run`'s files too) can carry it.
 fn finite_or_breakdown(out: &mut Output) {
     let (k, i) = (out.k, out.agent);
     for lane in &mut out.lanes {

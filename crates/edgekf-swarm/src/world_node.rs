@@ -4,6 +4,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::process::Command;
+use std::sync::MutexGuard;
 use std::time::{Duration, Instant};
 
 use edgekf::agent::{Output, World};
@@ -13,7 +14,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
 use crate::agent_node::{Control, Status};
-use crate::events::{Chan, Event, Events};
+use crate::events::{self, Chan, Event, Events, Slot};
 use crate::keys::Keys;
 use crate::stats::{Link, LinkStats, NetworkStats};
 use crate::wire::{self, ScenarioId};
@@ -63,23 +64,34 @@ pub struct WorldOutcome {
     pub deadline_misses: u64,
 }
 
-struct Node<'a> {
+/// What the world hears, taken in Zenoh's callbacks ([`crate::events`]).
+struct Inbox {
     id: ScenarioId,
-    keys: Keys,
-    o: &'a WorldOptions,
-    session: Session,
-    events: Events,
     n: usize,
+    /// Announce departures to the agents ([`WorldOptions::live`]).
+    live: bool,
     alive: BTreeSet<usize>,
     ever_alive: BTreeSet<usize>,
     ready: BTreeSet<usize>,
-    gone: BTreeSet<usize>,
     outputs: BTreeMap<usize, BTreeMap<usize, Output>>,
     out_stats: Vec<LinkStats>,
     /// Per agent: the last step the world went on with.
     used: Vec<usize>,
     links: Vec<(Link, LinkStats)>,
     reported: BTreeSet<usize>,
+    /// Agents whose token went, to announce (published by the world's thread, not in a
+    /// callback).
+    departed: Vec<usize>,
+}
+
+struct Node<'a> {
+    id: ScenarioId,
+    keys: Keys,
+    o: &'a WorldOptions,
+    session: Session,
+    events: Events<Inbox>,
+    n: usize,
+    gone: BTreeSet<usize>,
 }
 
 /// Runs the world of `sc` until its last step; `on_step(k)` after each.
@@ -102,27 +114,33 @@ pub fn run_world(
             what: "declare the world's liveliness".into(),
             detail: e.to_string(),
         })?;
-    let mut events = Events::new();
-    events.subscribe(&session, &keys.outputs(), Chan::Output)?;
-    events.subscribe(&session, &keys.statuses(), Chan::Status)?;
-    events.liveliness(&session, &keys.alive_agents())?;
     let n = sc.framework().agents();
-    let mut node = Node {
-        id: ScenarioId::of(sc),
-        keys,
-        o,
-        session,
-        events,
+    let id = ScenarioId::of(sc);
+    let mut events = Events::new(Inbox {
+        id: id.clone(),
         n,
+        live: o.live,
         alive: BTreeSet::new(),
         ever_alive: BTreeSet::new(),
         ready: BTreeSet::new(),
-        gone: BTreeSet::new(),
         outputs: BTreeMap::new(),
         out_stats: vec![LinkStats::default(); n],
         used: vec![0; n],
         links: Vec::new(),
         reported: BTreeSet::new(),
+        departed: Vec::new(),
+    });
+    events.subscribe(&session, &keys.outputs(), Chan::Output)?;
+    events.subscribe(&session, &keys.statuses(), Chan::Status)?;
+    events.liveliness(&session, &keys.alive_agents())?;
+    let mut node = Node {
+        id,
+        keys,
+        o,
+        session,
+        events,
+        n,
+        gone: BTreeSet::new(),
     };
     let run = node.meet().and_then(|()| node.steps(sc, on_step));
     let error = run.as_ref().err().map(ToString::to_string);
@@ -141,20 +159,9 @@ pub fn run_world(
 
 type StepsOutcome = (Results, Vec<Departure>, f64, u64, u64);
 
-impl Node<'_> {
-    fn put<T: serde::Serialize>(&self, key: &str, body: &T) -> Result<(), SwarmError> {
-        self.session
-            .put(key.to_string(), wire::encode(&self.id, body))
-            .congestion_control(CongestionControl::Block)
-            .wait()
-            .map_err(|e| SwarmError::Zenoh {
-                what: format!("publish on {key}"),
-                detail: e.to_string(),
-            })
-    }
-
-    fn take(&mut self, ev: Event) -> Result<(), SwarmError> {
-        let Some(i) = Keys::agent_of(&ev.key).filter(|&i| i < self.n) else {
+impl events::Inbox for Inbox {
+    fn take(&mut self, ev: Event<'_>) -> Result<(), SwarmError> {
+        let Some(i) = Keys::agent_of(ev.key).filter(|&i| i < self.n) else {
             return Ok(());
         };
         match ev.chan {
@@ -164,11 +171,11 @@ impl Node<'_> {
             }
             Chan::Alive(false) => {
                 self.alive.remove(&i);
-                if self.o.live {
-                    self.put(&self.keys.control(), &Control::Departed { agent: i })?;
+                if self.live {
+                    self.departed.push(i);
                 }
             }
-            Chan::Status => match wire::decode::<Status>(&self.id, &ev.key, &ev.bytes)?.0 {
+            Chan::Status => match wire::decode::<Status>(&self.id, ev.key, ev.bytes)?.0 {
                 Status::Ready => {
                     self.ready.insert(i);
                 }
@@ -178,7 +185,7 @@ impl Node<'_> {
                 }
             },
             Chan::Output => {
-                let (out, sent): (Output, u64) = wire::decode(&self.id, &ev.key, &ev.bytes)?;
+                let (out, sent): (Output, u64) = wire::decode(&self.id, ev.key, ev.bytes)?;
                 let late = out.k <= self.used[i];
                 let lat = wire::now_ns().saturating_sub(sent) as f64 / 1000.0
                     - ev.at.elapsed().as_secs_f64() * 1e6;
@@ -193,19 +200,54 @@ impl Node<'_> {
         }
         Ok(())
     }
+}
 
+impl Inbox {
+    /// Whether every `expected` agent's output of step `k` is here (or, live, its process
+    /// ended).
+    fn has_outputs(&self, k: usize, expected: &[usize]) -> bool {
+        expected.iter().all(|&i| {
+            self.outputs.get(&k).is_some_and(|m| m.contains_key(&i))
+                || (self.live && !self.alive.contains(&i))
+        })
+    }
+}
+
+impl Node<'_> {
+    fn put<T: wire::Body>(&self, key: &str, body: &T) -> Result<(), SwarmError> {
+        self.session
+            .put(key.to_string(), wire::encode(&self.id, body))
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(|e| SwarmError::Zenoh {
+                what: format!("publish on {key}"),
+                detail: e.to_string(),
+            })
+    }
+
+    fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {
+        self.events.lock()
+    }
+
+    /// Waits until `done` or `deadline` (`false`), announcing departures meanwhile.
     fn wait_until(
         &mut self,
         deadline: Instant,
-        done: impl Fn(&Self) -> bool,
+        done: impl Fn(&Inbox) -> bool + Clone + Send + 'static,
     ) -> Result<bool, SwarmError> {
         loop {
-            if done(self) {
+            let d = done.clone();
+            self.events
+                .wait_until(deadline, move |s| !s.departed.is_empty() || d(s))?;
+            let departed = std::mem::take(&mut self.inbox().state.departed);
+            for agent in departed {
+                self.put(&self.keys.control(), &Control::Departed { agent })?;
+            }
+            if done(&self.inbox().state) {
                 return Ok(true);
             }
-            match self.events.next_before(deadline) {
-                Some(ev) => self.take(ev)?,
-                None => return Ok(done(self)),
+            if Instant::now() >= deadline {
+                return Ok(false);
             }
         }
     }
@@ -214,10 +256,12 @@ impl Node<'_> {
     fn meet(&mut self) -> Result<(), SwarmError> {
         let n = self.n;
         let deadline = Instant::now() + self.o.timeout;
-        if !self.wait_until(deadline, |s| s.ready.len() == n)? {
-            let unseen: Vec<usize> = (0..n).filter(|i| !self.ever_alive.contains(i)).collect();
+        if !self.wait_until(deadline, move |s| s.ready.len() == n)? {
+            let g = self.inbox();
+            let (ever_alive, ready) = (&g.state.ever_alive, &g.state.ready);
+            let unseen: Vec<usize> = (0..n).filter(|i| !ever_alive.contains(i)).collect();
             let unready: Vec<usize> = (0..n)
-                .filter(|i| self.ever_alive.contains(i) && !self.ready.contains(i))
+                .filter(|i| ever_alive.contains(i) && !ready.contains(i))
                 .collect();
             let what = if unseen.len() == n {
                 format!("world: no agent connected to {}", self.o.endpoints.world)
@@ -280,35 +324,9 @@ impl Node<'_> {
                 Mode::Lockstep => Instant::now() + self.o.timeout,
                 Mode::Realtime { period } => start + period * (k as u32),
             };
-            let lockstep = self.o.mode == Mode::Lockstep;
-            let got = self.wait_until(deadline, |s| {
-                expected.iter().all(|&i| {
-                    s.outputs.get(&k).is_some_and(|m| m.contains_key(&i))
-                        || (s.o.live && !s.alive.contains(&i))
-                })
-            })?;
-            if !got && lockstep {
-                let missing: Vec<usize> = expected
-                    .iter()
-                    .filter(|&&i| !self.outputs.get(&k).is_some_and(|m| m.contains_key(&i)))
-                    .copied()
-                    .collect();
-                return Err(SwarmError::timeout(
-                    format!("world: agents {missing:?} sent no output for step {k}"),
-                    self.o.timeout,
-                    "an agent that stops answering ends a lockstep swarm unless it is --live",
-                ));
-            }
-            let outs = self.outputs.remove(&k).unwrap_or_default();
+            let outs = self.await_outputs(k, &expected, deadline)?;
             expected_total += expected.len() as u64;
-            for &i in &expected {
-                self.used[i] = k;
-                if !outs.contains_key(&i) {
-                    misses += 1;
-                    self.out_stats[i].lost += 1;
-                }
-            }
-            self.outputs.retain(|&s, _| s > k);
+            misses += expected.iter().filter(|i| !outs.contains_key(i)).count() as u64;
             let refs: Vec<Option<&Output>> = (0..self.n).map(|i| outs.get(&i)).collect();
             world.act(&refs);
             on_step(k);
@@ -318,15 +336,56 @@ impl Node<'_> {
         Ok((world.results(), departures, rate, expected_total, misses))
     }
 
+    /// The outputs of step `k` of the `expected` agents that came by `deadline` (in lockstep,
+    /// all of them or an error); the missing ones count as lost, later ones as late.
+    fn await_outputs(
+        &mut self,
+        k: usize,
+        expected: &[usize],
+        deadline: Instant,
+    ) -> Result<BTreeMap<usize, Output>, SwarmError> {
+        let want = expected.to_vec();
+        let got = self.wait_until(deadline, move |s| s.has_outputs(k, &want))?;
+        let mut g = self.inbox();
+        let s = &mut g.state;
+        if !got && self.o.mode == Mode::Lockstep {
+            let missing: Vec<usize> = expected
+                .iter()
+                .filter(|&&i| !s.outputs.get(&k).is_some_and(|m| m.contains_key(&i)))
+                .copied()
+                .collect();
+            return Err(SwarmError::timeout(
+                format!("world: agents {missing:?} sent no output for step {k}"),
+                self.o.timeout,
+                "an agent that stops answering ends a lockstep swarm unless it is --live",
+            ));
+        }
+        let outs = s.outputs.remove(&k).unwrap_or_default();
+        for &i in expected {
+            s.used[i] = k;
+            if !outs.contains_key(&i) {
+                s.out_stats[i].lost += 1;
+            }
+        }
+        s.outputs.retain(|&step, _| step > k);
+        Ok(outs)
+    }
+
     /// An agent whose process ended during the last step is absent from step `k` on (a live
     /// swarm only).
     fn depart_ended(&mut self, world: &mut World, k: usize, departures: &mut Vec<Departure>) {
         if !self.o.live {
             return;
         }
-        for i in 0..self.n {
-            let ended = !self.alive.contains(&i) && self.ever_alive.contains(&i);
-            if world.present(i) && ended && self.gone.insert(i) {
+        let ended: Vec<usize> = {
+            let g = self.inbox();
+            let s = &g.state;
+            (0..self.n)
+                .filter(|i| !s.alive.contains(i) && s.ever_alive.contains(i))
+                .collect()
+        };
+        for i in ended {
+            if world.present(i) && self.gone.insert(i) {
                 world.depart(i);
                 departures.push(Departure {
                     agent: i,
@@ -344,14 +403,16 @@ impl Node<'_> {
     }
 
     fn network(&self) -> NetworkStats {
+        let g = self.inbox();
+        let s = &g.state;
         // What each agent sent on the mesh, for the links out of it.
         let mut sent: BTreeMap<(usize, String), u64> = BTreeMap::new();
-        for (l, s) in &self.links {
+        for (l, st) in &s.links {
             if let (Some(j), None, Some(ch)) = (l.from, l.to, l.channel.strip_prefix("sent_")) {
-                sent.insert((j, ch.to_string()), s.sent);
+                sent.insert((j, ch.to_string()), st.sent);
             }
         }
-        let mut links: Vec<(Link, LinkStats)> = self
+        let mut links: Vec<(Link, LinkStats)> = s
             .links
             .iter()
             .filter(|(l, _)| !l.channel.starts_with("sent_"))
@@ -365,7 +426,7 @@ impl Node<'_> {
                 (l.clone(), s)
             })
             .collect();
-        for (i, s) in self.out_stats.iter().enumerate() {
+        for (i, s) in s.out_stats.iter().enumerate() {
             let mut s = s.clone();
             s.sent = s.received + s.lost;
             links.push((
