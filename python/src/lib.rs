@@ -195,20 +195,7 @@ fn simulate(
                 }
             }
             let _done = Done(&done);
-            pool.install(|| -> anyhow::Result<(Results, Option<SweepResults>)> {
-                // A few runs frame by frame, as the CLI records them (`save` writes the CLI's
-                // files, frames.json included).
-                let frames = edgekf_io::frames::frame_options(sc);
-                if sc.sweep().is_some() {
-                    // The scenario at every value of its sweep, then as written (the CLI's
-                    // `run` of a sweep).
-                    let sw = sim::sweep::run_with(sc, &obs, frames)?;
-                    Ok((sw.base.clone(), Some(sw)))
-                } else {
-                    let res = sim::run_range(sc, 0..sc.runs(), &obs, frames)?;
-                    Ok((res, None))
-                }
-            })
+            pool.install(|| study(sc, &obs))
         });
         let mut interrupted: Option<PyErr> = None;
         loop {
@@ -241,18 +228,34 @@ fn simulate(
         match joined {
             Ok(Ok(out)) => Ok(out),
             Ok(Err(e)) => Err(PyRuntimeError::new_err(e.to_string())),
-            Err(p) => {
-                let msg = p
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_else(|| "unknown panic".into());
-                Err(PyRuntimeError::new_err(format!(
-                    "edgekf: internal error (please report): {msg}"
-                )))
-            }
+            Err(p) => Err(PyRuntimeError::new_err(format!(
+                "edgekf: internal error (please report): {}",
+                panic_message(p.as_ref())
+            ))),
         }
     })
+}
+
+/// The study of `sc` as the CLI's `run` makes it: every run, a few of them frame by frame (`save`
+/// writes the CLI's files, frames.json included), and for a scenario with a sweep every value of
+/// it, then the scenario as written.
+fn study(sc: &Scenario, obs: &Obs) -> anyhow::Result<(Results, Option<SweepResults>)> {
+    let frames = edgekf_io::frames::frame_options(sc);
+    if sc.sweep().is_some() {
+        let sw = sim::sweep::run_with(sc, obs, frames)?;
+        Ok((sw.base.clone(), Some(sw)))
+    } else {
+        let res = sim::run_range(sc, 0..sc.runs(), obs, frames)?;
+        Ok((res, None))
+    }
+}
+
+/// The message of a caught panic.
+fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_else(|| "unknown panic".into())
 }
 
 /// `(time, mean, std)` arrays.

@@ -276,6 +276,50 @@ fn read_input(path: &Path) -> anyhow::Result<Candidate> {
 /// or output that cannot be written.
 pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
     let method: Method = args.method.into();
+    let candidate = candidate_of(args, method)?;
+    let id = edgekf_io::outdir::StudyId::new("framework", &candidate.name);
+    let prep =
+        edgekf_io::outdir::prepare(&args.out, &id, args.force, edgekf_io::outdir::Hint::CLI)?;
+    println!(
+        "designing {} ({} agents in {}-D, {} candidate links) with method {:?}",
+        candidate.name,
+        candidate.config.len(),
+        candidate.dim,
+        candidate.links.len(),
+        method
+    );
+    let start = Instant::now();
+    let mut designed = design::design(&candidate, method)
+        .map_err(|e| anyhow!("design of {:?} failed — {e}", candidate.name))?;
+    let elapsed = start.elapsed();
+    if args.leaders == Some(LeadersArg::Auto) {
+        designed.framework = choose_leaders(args, designed.framework)?;
+    }
+    let f = &designed.framework;
+    let report = CheckReport::from_framework(f);
+    println!("{report}");
+    print_summary(&candidate, &designed, method, elapsed.as_secs_f64());
+    report
+        .verdict()
+        .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;
+
+    let mut st = crate::interrupt::stage(&args.out)?;
+    let json = edgekf_io::to_json_pretty(&FrameworkFile::from_framework(f))?;
+    st.write("framework.json", json.as_bytes())?;
+    let tmp = st.path("framework.png");
+    plot_framework(f, &report, designed.method, &tmp)?;
+    crate::commit(st, prep, &id)?;
+    println!(
+        "wrote {} and {}",
+        args.out.join("framework.json").display(),
+        args.out.join("framework.png").display()
+    );
+    Ok(())
+}
+
+/// The candidate of `edgekf design`: read from the input file or generated, its cost checked
+/// before anything runs, with the leaders the flags ask for.
+fn candidate_of(args: &DesignArgs, method: Method) -> anyhow::Result<Candidate> {
     let mut candidate = match (&args.input, args.generate) {
         (Some(path), None) => {
             let c = read_input(path)?;
@@ -313,46 +357,33 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
         Some(LeadersArg::None | LeadersArg::Auto) => candidate.leaders.clear(),
         None => {}
     }
-    let id = edgekf_io::outdir::StudyId::new("framework", &candidate.name);
-    let prep =
-        edgekf_io::outdir::prepare(&args.out, &id, args.force, edgekf_io::outdir::Hint::CLI)?;
+    Ok(candidate)
+}
+
+/// `--leaders auto`: the designed framework with the leaders `design::choose_leaders` picks.
+fn choose_leaders(args: &DesignArgs, framework: Framework) -> anyhow::Result<Framework> {
+    let mode: LeaderMode = args.leader_mode.into();
+    let choice = design::choose_leaders(&framework, mode)
+        .map_err(|e| anyhow!("choosing leaders failed — {e}"))?;
     println!(
-        "designing {} ({} agents in {}-D, {} candidate links) with method {:?}",
-        candidate.name,
-        candidate.config.len(),
-        candidate.dim,
-        candidate.links.len(),
-        method
+        "leaders chosen ({mode:?} mode): {:?} — λ_min(L_ff) = {:.4}, proxy σ_min(V_ℓ) = {:.4}; \
+         best of {} evaluated among {} candidate sets ranked by the proxy",
+        choice.leaders,
+        choice.follower_min_eigenvalue,
+        choice.proxy,
+        choice.evaluated,
+        choice.candidates
     );
-    let start = Instant::now();
-    let designed = design::design(&candidate, method)
-        .map_err(|e| anyhow!("design of {:?} failed — {e}", candidate.name))?;
-    let elapsed = start.elapsed();
-    let mut designed = designed;
-    if args.leaders == Some(LeadersArg::Auto) {
-        let mode: LeaderMode = args.leader_mode.into();
-        let choice = design::choose_leaders(&designed.framework, mode)
-            .map_err(|e| anyhow!("choosing leaders failed — {e}"))?;
-        println!(
-            "leaders chosen ({mode:?} mode): {:?} — λ_min(L_ff) = {:.4}, proxy σ_min(V_ℓ) = {:.4}; \
-             best of {} evaluated among {} candidate sets ranked by the proxy",
-            choice.leaders,
-            choice.follower_min_eigenvalue,
-            choice.proxy,
-            choice.evaluated,
-            choice.candidates
-        );
-        designed.framework = designed
-            .framework
-            .with_leaders(&choice.leaders)
-            .map_err(|e| anyhow!("choosing leaders failed — {e}"))?;
-    }
+    framework
+        .with_leaders(&choice.leaders)
+        .map_err(|e| anyhow!("choosing leaders failed — {e}"))
+}
+
+/// The design's links, solver and time, one line.
+fn print_summary(candidate: &Candidate, designed: &design::Design, method: Method, time: f64) {
     let f = &designed.framework;
-    let report = CheckReport::from_framework(f);
-    println!("{report}");
     let kept = f.graph().links().len();
     let degree = 2.0 * kept as f64 / f.agents() as f64;
-    let time = elapsed.as_secs_f64();
     if method == Method::Yang {
         let own = f
             .graph()
@@ -381,22 +412,6 @@ pub fn run(args: &DesignArgs) -> anyhow::Result<()> {
     if let Some(note) = &designed.note {
         println!("note: {note}");
     }
-    report
-        .verdict()
-        .map_err(|e| anyhow!("the designed framework failed its checks — {e}"))?;
-
-    let mut st = crate::interrupt::stage(&args.out)?;
-    let json = edgekf_io::to_json_pretty(&FrameworkFile::from_framework(f))?;
-    st.write("framework.json", json.as_bytes())?;
-    let tmp = st.path("framework.png");
-    plot_framework(f, &report, designed.method, &tmp)?;
-    crate::commit(st, prep, &id)?;
-    println!(
-        "wrote {} and {}",
-        args.out.join("framework.json").display(),
-        args.out.join("framework.png").display()
-    );
-    Ok(())
 }
 
 /// Draws the framework with the figure toolkit: links with width ∝ |weight| (blue positive, vermillion
@@ -409,9 +424,7 @@ fn plot_framework(
     method: &str,
     path: &Path,
 ) -> anyhow::Result<()> {
-    use crate::figure::{
-        palette, Axis, Curve, Figure, HAlign, Label, Marker, Panel, Shape, Style, VAlign,
-    };
+    use crate::figure::{palette, Axis, Curve, Figure, Label, Panel, Style, VAlign};
     let n = f.agents();
     let xy = |i: usize| -> (f64, f64) {
         let p = f.point(i);
@@ -454,22 +467,7 @@ fn plot_framework(
             ),
         );
         if label_weights {
-            let clearance = |q: (f64, f64)| {
-                taken
-                    .iter()
-                    .map(|t| (t.0 - q.0).hypot(t.1 - q.1))
-                    .fold(f64::INFINITY, f64::min)
-            };
-            let at = |t: f64| (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
-            // Half way unless that is crowded; then the clearest of a few points along the link.
-            let mut q = at(0.5);
-            if clearance(q) < 0.06 * extent {
-                q = [0.5, 0.38, 0.62, 0.3, 0.7, 0.25, 0.75]
-                    .iter()
-                    .map(|&t| at(t))
-                    .max_by(|p, r| clearance(*p).total_cmp(&clearance(*r)))
-                    .unwrap_or(q);
-            }
+            let q = label_spot(a, b, &taken, extent);
             taken.push(q);
             p.labels.push(Label {
                 size: 12.0,
@@ -479,29 +477,7 @@ fn plot_framework(
             });
         }
     }
-    let leaders = f.leaders();
-    let (fx, fy): (Vec<f64>, Vec<f64>) = (0..n).filter(|i| !leaders.contains(i)).map(xy).unzip();
-    p.curves.push(
-        Curve::new("agents", fx, fy)
-            .with_style(Style::markers(Marker::new(Shape::Circle, 12.0)).colour(palette::MARKER)),
-    );
-    if !leaders.is_empty() {
-        let (lx, ly): (Vec<f64>, Vec<f64>) = leaders.iter().map(|&i| xy(i)).unzip();
-        p.curves.push(
-            Curve::new("leaders", lx, ly).with_style(
-                Style::markers(Marker::new(Shape::Circle, 16.0)).colour(palette::LEADER),
-            ),
-        );
-    }
-    for i in 0..n {
-        let (x, y) = xy(i);
-        p.labels.push(Label {
-            offset: (9.0, -9.0),
-            h: HAlign::Left,
-            size: 15.0,
-            ..Label::new(x, y, format!("{i}"))
-        });
-    }
+    agent_marks(&mut p, f, xy);
     let title = format!(
         "{} — {} design, {} links, λ_{{max}}/λ_{{gap}} = {:.1}{}",
         f.name(),
@@ -525,6 +501,58 @@ fn plot_framework(
         eprintln!("warning: {}: {w}", path.display());
     }
     Ok(())
+}
+
+/// Where a link's weight label goes: half way from `a` to `b` unless that is within 6 % of the
+/// extent of an agent or a placed label (`taken`); then the clearest of a few points along it.
+fn label_spot(a: (f64, f64), b: (f64, f64), taken: &[(f64, f64)], extent: f64) -> (f64, f64) {
+    let clearance = |q: (f64, f64)| {
+        taken
+            .iter()
+            .map(|t| (t.0 - q.0).hypot(t.1 - q.1))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let at = |t: f64| (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+    let q = at(0.5);
+    if clearance(q) >= 0.06 * extent {
+        return q;
+    }
+    [0.5, 0.38, 0.62, 0.3, 0.7, 0.25, 0.75]
+        .iter()
+        .map(|&t| at(t))
+        .max_by(|p, r| clearance(*p).total_cmp(&clearance(*r)))
+        .unwrap_or(q)
+}
+
+/// The agents as black dots, the leaders as larger red ones, each numbered.
+fn agent_marks(p: &mut crate::figure::Panel, f: &Framework, xy: impl Fn(usize) -> (f64, f64)) {
+    use crate::figure::{palette, Curve, HAlign, Label, Marker, Shape, Style};
+    let leaders = f.leaders();
+    let (fx, fy): (Vec<f64>, Vec<f64>) = (0..f.agents())
+        .filter(|i| !leaders.contains(i))
+        .map(&xy)
+        .unzip();
+    p.curves.push(
+        Curve::new("agents", fx, fy)
+            .with_style(Style::markers(Marker::new(Shape::Circle, 12.0)).colour(palette::MARKER)),
+    );
+    if !leaders.is_empty() {
+        let (lx, ly): (Vec<f64>, Vec<f64>) = leaders.iter().map(|&i| xy(i)).unzip();
+        p.curves.push(
+            Curve::new("leaders", lx, ly).with_style(
+                Style::markers(Marker::new(Shape::Circle, 16.0)).colour(palette::LEADER),
+            ),
+        );
+    }
+    for i in 0..f.agents() {
+        let (x, y) = xy(i);
+        p.labels.push(Label {
+            offset: (9.0, -9.0),
+            h: HAlign::Left,
+            size: 15.0,
+            ..Label::new(x, y, format!("{i}"))
+        });
+    }
 }
 
 #[cfg(test)]

@@ -308,95 +308,7 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
             shard,
             force,
             over,
-        } => {
-            let text = fs::read_to_string(&scenario)
-                .with_context(|| format!("cannot read {}", scenario.display()))?;
-            let source = scenario.display().to_string();
-            match io::kind_of(&text) {
-                io::Kind::Slam => {
-                    if over.runs.is_some()
-                        || over.steps.is_some()
-                        || over.seed.is_some()
-                        || over.every.is_some()
-                        || shard.is_some()
-                    {
-                        bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
-                    }
-                    let id = StudyId::new("slam", &slam::study_name(&source, &text)?);
-                    let prep = outdir::prepare(&out, &id, force, Hint::CLI)?;
-                    let st = slam::run_text(&source, &text, &out, over.json)?;
-                    commit(st, prep, &id)?;
-                    Ok(ExitCode::SUCCESS)
-                }
-                io::Kind::Filters => {
-                    let sc = load(&source, &text, scenario.parent(), &over)?;
-                    let pool = pool(over.threads)?;
-                    let range = match shard {
-                        Some((i, k)) => {
-                            if k > sc.runs() {
-                                bail!(
-                                    "flag `--shard`: {k} shards for {} runs leaves some shards empty; use at most {} shards",
-                                    sc.runs(),
-                                    sc.runs()
-                                );
-                            }
-                            sim::shard_range(sc.runs(), i, k)
-                        }
-                        None => 0..sc.runs(),
-                    };
-                    check_cost(&sc, range.len(), pool.current_num_threads(), &over)?;
-                    let id = if shard.is_some() {
-                        StudyId::new("shard", sc.name())
-                    } else {
-                        StudyId::study(sc.name())
-                    };
-                    let prep = outdir::prepare(&out, &id, force, Hint::CLI)?;
-                    if sc.sweep().is_some() {
-                        if shard.is_some() {
-                            bail!("flag `--shard`: a scenario with a [sweep] is not sharded; split its `values` over several scenario files instead");
-                        }
-                        let sw = pool.install(|| simulate_sweep(&sc))?;
-                        let mut st = interrupt::stage(&out)?;
-                        let extra = plot_garkf::Extra {
-                            sweep: Some(&sw),
-                            ..Default::default()
-                        };
-                        stage_outputs(&mut st, &sc, &sw.base, None, &extra)?;
-                        commit(st, prep, &id)?;
-                        eprintln!(
-                            "wrote {} (a sweep of {} values)",
-                            out.display(),
-                            sw.points.len()
-                        );
-                        return Ok(report(&sc, &sw.base, &over));
-                    }
-                    let res = pool.install(|| simulate(&sc, range))?;
-                    let mut st = interrupt::stage(&out)?;
-                    match shard {
-                        Some(s) => {
-                            stage_scenario(&mut st, &sc)?;
-                            io::write_shard(&mut st, &res, s)?;
-                            commit(st, prep, &id)?;
-                            eprintln!(
-                                "wrote shard {}/{} (runs {}..{}) to {}",
-                                s.0,
-                                s.1,
-                                res.runs.start,
-                                res.runs.end,
-                                out.display()
-                            );
-                            Ok(ExitCode::SUCCESS)
-                        }
-                        None => {
-                            stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
-                            commit(st, prep, &id)?;
-                            eprintln!("wrote {}", out.display());
-                            Ok(report(&sc, &res, &over))
-                        }
-                    }
-                }
-            }
-        }
+        } => run(&scenario, &out, shard, force, &over),
         Command::Merge {
             parts,
             out,
@@ -445,6 +357,91 @@ fn dispatch(cli: Cli) -> Result<ExitCode> {
         #[cfg(feature = "swarm")]
         Command::Swarm(args) => swarm::swarm(&args),
     }
+}
+
+/// `edgekf run`: a SLAM scenario or a filter study (all its runs, a shard of them, or a sweep).
+fn run(
+    scenario: &Path,
+    out: &Path,
+    shard: Option<(usize, usize)>,
+    force: bool,
+    over: &Overrides,
+) -> Result<ExitCode> {
+    let text = fs::read_to_string(scenario)
+        .with_context(|| format!("cannot read {}", scenario.display()))?;
+    let source = scenario.display().to_string();
+    if let io::Kind::Slam = io::kind_of(&text) {
+        if over.runs.is_some()
+            || over.steps.is_some()
+            || over.seed.is_some()
+            || over.every.is_some()
+            || shard.is_some()
+        {
+            bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
+        }
+        let id = StudyId::new("slam", &slam::study_name(&source, &text)?);
+        let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
+        let st = slam::run_text(&source, &text, out, over.json)?;
+        commit(st, prep, &id)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let sc = load(&source, &text, scenario.parent(), over)?;
+    let pool = pool(over.threads)?;
+    let range = match shard {
+        Some((_, k)) if k > sc.runs() => bail!(
+            "flag `--shard`: {k} shards for {} runs leaves some shards empty; use at most {} shards",
+            sc.runs(),
+            sc.runs()
+        ),
+        Some((i, k)) => sim::shard_range(sc.runs(), i, k),
+        None => 0..sc.runs(),
+    };
+    check_cost(&sc, range.len(), pool.current_num_threads(), over)?;
+    let id = if shard.is_some() {
+        StudyId::new("shard", sc.name())
+    } else {
+        StudyId::study(sc.name())
+    };
+    let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
+    if sc.sweep().is_some() {
+        if shard.is_some() {
+            bail!("flag `--shard`: a scenario with a [sweep] is not sharded; split its `values` over several scenario files instead");
+        }
+        let sw = pool.install(|| simulate_sweep(&sc))?;
+        let mut st = interrupt::stage(out)?;
+        let extra = plot_garkf::Extra {
+            sweep: Some(&sw),
+            ..Default::default()
+        };
+        stage_outputs(&mut st, &sc, &sw.base, None, &extra)?;
+        commit(st, prep, &id)?;
+        eprintln!(
+            "wrote {} (a sweep of {} values)",
+            out.display(),
+            sw.points.len()
+        );
+        return Ok(report(&sc, &sw.base, over));
+    }
+    let res = pool.install(|| simulate(&sc, range))?;
+    let mut st = interrupt::stage(out)?;
+    if let Some(s) = shard {
+        stage_scenario(&mut st, &sc)?;
+        io::write_shard(&mut st, &res, s)?;
+        commit(st, prep, &id)?;
+        eprintln!(
+            "wrote shard {}/{} (runs {}..{}) to {}",
+            s.0,
+            s.1,
+            res.runs.start,
+            res.runs.end,
+            out.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
+    commit(st, prep, &id)?;
+    eprintln!("wrote {}", out.display());
+    Ok(report(&sc, &res, over))
 }
 
 /// Prints the summary; the exit code says whether every estimator completed.
@@ -571,9 +568,6 @@ fn fit_ar(
     let p = Progress::new(total, "fit-ar");
     let res = pool.install(|| sim::run_with(&sc, &p, opt))?;
     p.0.finish_and_clear();
-    let acov = &res.input_acov[e];
-    let mut coeffs = vec![vec![0.0; acov.len()]; order];
-    let mut noise = Vec::new();
     println!(
         "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{}`,",
         sc.estimators()[e].label()
@@ -586,6 +580,14 @@ fn fit_ar(
         source,
         sc.seed()
     );
+    print_ar_fit(&res.input_acov[e], order)
+}
+
+/// The Yule–Walker fit of each coordinate's input autocovariances `acov[d]` (lags 0..=order):
+/// the autocorrelations as comments, then the `[comm.ar]` table of a scenario file.
+fn print_ar_fit(acov: &[Vec<f64>], order: usize) -> Result<()> {
+    let mut coeffs = vec![vec![0.0; acov.len()]; order];
+    let mut noise = Vec::new();
     for (d, r) in acov.iter().enumerate() {
         let (a, v) = edgekf::estimate::ar::yule_walker(r).with_context(|| {
             format!("coordinate {d}: the inputs are identically zero; nothing to fit")
@@ -601,28 +603,16 @@ fn fit_ar(
         }
         noise.push(v);
     }
-    println!("[comm.ar]");
-    let rows: Vec<String> = coeffs
-        .iter()
-        .map(|c| {
-            format!(
-                "[{}]",
-                c.iter()
-                    .map(|v| format!("{v}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        })
-        .collect();
-    println!("coeffs = [{}]", rows.join(", "));
-    println!(
-        "noise_var = [{}]",
-        noise
-            .iter()
-            .map(|v| format!("{v}"))
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x}"))
             .collect::<Vec<_>>()
             .join(", ")
-    );
+    };
+    let rows: Vec<String> = coeffs.iter().map(|c| format!("[{}]", list(c))).collect();
+    println!("[comm.ar]");
+    println!("coeffs = [{}]", rows.join(", "));
+    println!("noise_var = [{}]", list(&noise));
     Ok(())
 }
 
@@ -794,56 +784,20 @@ fn reproduce(
     html: bool,
     force: bool,
 ) -> Result<ExitCode> {
-    if names.is_empty() {
-        bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
-    }
-    let mut entries: Vec<&registry::Entry> = Vec::new();
-    for n in names {
-        if n == "all" {
-            entries.extend(registry::ENTRIES.iter());
-        } else {
-            let e = registry::find(n).with_context(|| {
-                format!("unknown figure `{n}`; `edgekf reproduce --list` prints the names")
-            })?;
-            entries.push(e);
-        }
-    }
-    entries.dedup_by_key(|e| e.name);
+    let entries = select_entries(names)?;
     let pool = pool(over.threads)?;
     let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
         .into_iter()
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
-    // Check every scenario before running any, so a bad flag fails at once. Companions (further
-    // studies a figure draws) come before the figures that need them.
-    let mut files: Vec<(&str, Scenario)> = Vec::new();
-    for e in &entries {
-        for (file, text) in e.companions.iter().copied().chain([(e.file, e.text)]) {
-            if files.iter().any(|(f, _)| *f == file) {
-                continue;
-            }
-            let sc = load_with(file, text, over, &|t| {
-                Ok(io::load_scenario_with(
-                    file,
-                    t,
-                    &registry::embedded_framework,
-                )?)
-            })?;
-            check_cost(&sc, sc.runs(), pool.current_num_threads(), over)?;
-            files.push((file, sc));
-        }
-    }
+    let files = check_reproductions(&entries, over, pool.current_num_threads())?;
     // Every output directory is checked before anything runs: a reproduce root holds one
     // directory per simulation, and each holds its own study only.
     outdir::prepare_root(out, force, Hint::CLI)?;
     let mut prepared: Vec<Option<outdir::Prepared>> = Vec::new();
     for (file, sc) in &files {
         let id = StudyId::study(sc.name());
-        prepared.push(Some(outdir::prepare(
-            &out.join(sim_dir(file)),
-            &id,
-            force,
-            Hint::CLI,
-        )?));
+        let dir = out.join(sim_dir(file));
+        prepared.push(Some(outdir::prepare(&dir, &id, force, Hint::CLI)?));
     }
     let mut slam_prepared: Vec<(StudyId, Option<outdir::Prepared>)> = Vec::new();
     for e in &slams {
@@ -871,49 +825,17 @@ fn reproduce(
             .filter(|e| e.file == *file)
             .collect();
         let plots: Vec<&str> = mine.iter().flat_map(|e| e.plots.iter().copied()).collect();
-        let mut extra = plot_garkf::Extra {
+        let extra = plot_garkf::Extra {
             sweep: sweep.as_ref(),
-            companions: Vec::new(),
+            companions: companions(&mine, &files, &done),
         };
-        for e in &mine {
-            for (cf, _) in e.companions {
-                let csc = files.iter().find(|(f, _)| f == cf).map(|(_, s)| s);
-                let csw = done
-                    .iter()
-                    .find(|(f, _)| f == cf)
-                    .and_then(|(_, w)| w.as_ref());
-                if let (Some(csc), Some(csw)) = (csc, csw) {
-                    extra.companions.push((csc, csw));
-                }
-            }
-        }
         let mut st = interrupt::stage(&dir)?;
         stage_outputs(&mut st, sc, &res, Some(&plots), &extra)?;
         let prep = prepared[k]
             .take()
             .context("each simulation is prepared once")?;
         commit(st, prep, &StudyId::study(sc.name()))?;
-        for e in &mine {
-            eprintln!(
-                "{:<16} {}",
-                e.name,
-                e.plots
-                    .iter()
-                    .map(|p| dir.join(format!("{p}.png")).display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
-        eprintln!(
-            "  ({file}: {} runs × {} steps{} simulated in {:.2?})",
-            sc.runs(),
-            sc.steps(),
-            sweep
-                .as_ref()
-                .map(|w| format!(" × {} sweep values", w.points.len()))
-                .unwrap_or_default(),
-            sim_time
-        );
+        print_reproduced(&mine, &dir, file, sc, sweep.as_ref(), sim_time);
         if report(sc, &res, over) != ExitCode::SUCCESS {
             code = ExitCode::from(DIVERGED);
         }
@@ -949,4 +871,101 @@ fn reproduce(
         start.elapsed()
     );
     Ok(code)
+}
+
+/// The registry entries `names` asks for (`all`: every one), each once.
+fn select_entries(names: &[String]) -> Result<Vec<&'static registry::Entry>> {
+    if names.is_empty() {
+        bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
+    }
+    let mut entries: Vec<&registry::Entry> = Vec::new();
+    for n in names {
+        if n == "all" {
+            entries.extend(registry::ENTRIES.iter());
+        } else {
+            let e = registry::find(n).with_context(|| {
+                format!("unknown figure `{n}`; `edgekf reproduce --list` prints the names")
+            })?;
+            entries.push(e);
+        }
+    }
+    entries.dedup_by_key(|e| e.name);
+    Ok(entries)
+}
+
+/// Every scenario the entries simulate, checked before any runs so that a bad flag fails at
+/// once: each file once, companions (further studies a figure draws) before the figures that
+/// need them.
+fn check_reproductions(
+    entries: &[&'static registry::Entry],
+    over: &Overrides,
+    threads: usize,
+) -> Result<Vec<(&'static str, Scenario)>> {
+    let mut files: Vec<(&str, Scenario)> = Vec::new();
+    for e in entries {
+        for (file, text) in e.companions.iter().copied().chain([(e.file, e.text)]) {
+            if files.iter().any(|(f, _)| *f == file) {
+                continue;
+            }
+            let sc = load_with(file, text, over, &|t| {
+                Ok(io::load_scenario_with(
+                    file,
+                    t,
+                    &registry::embedded_framework,
+                )?)
+            })?;
+            check_cost(&sc, sc.runs(), threads, over)?;
+            files.push((file, sc));
+        }
+    }
+    Ok(files)
+}
+
+/// The companion studies (scenario and sweep, already simulated) the entries `mine` draw.
+fn companions<'a>(
+    mine: &[&registry::Entry],
+    files: &'a [(&str, Scenario)],
+    done: &'a [(&str, Option<sim::sweep::SweepResults>)],
+) -> Vec<(&'a Scenario, &'a sim::sweep::SweepResults)> {
+    let mut out = Vec::new();
+    for e in mine {
+        for (cf, _) in e.companions {
+            let csc = files.iter().find(|(f, _)| f == cf).map(|(_, s)| s);
+            let csw = done
+                .iter()
+                .find(|(f, _)| f == cf)
+                .and_then(|(_, w)| w.as_ref());
+            if let (Some(csc), Some(csw)) = (csc, csw) {
+                out.push((csc, csw));
+            }
+        }
+    }
+    out
+}
+
+/// The figures a simulation wrote and what it cost, on stderr.
+fn print_reproduced(
+    mine: &[&registry::Entry],
+    dir: &Path,
+    file: &str,
+    sc: &Scenario,
+    sweep: Option<&sim::sweep::SweepResults>,
+    sim_time: std::time::Duration,
+) {
+    for e in mine {
+        let pngs: Vec<String> = e
+            .plots
+            .iter()
+            .map(|p| dir.join(format!("{p}.png")).display().to_string())
+            .collect();
+        eprintln!("{:<16} {}", e.name, pngs.join(", "));
+    }
+    eprintln!(
+        "  ({file}: {} runs × {} steps{} simulated in {sim_time:.2?})",
+        sc.runs(),
+        sc.steps(),
+        sweep
+            .map(|w| format!(" × {} sweep values", w.points.len()))
+            .unwrap_or_default(),
+    );
 }

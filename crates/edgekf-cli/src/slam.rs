@@ -230,6 +230,22 @@ fn design_report(source: &str, sc: &Scenario) -> String {
             pc.on_axis, pc.closest_eigenvalue.re
         );
     }
+    theorem_report(&mut s, sc);
+    let rho = sc.closed_loop_spectral_radius();
+    let _ = writeln!(
+        s,
+        "RK4: h = {} s, {} steps, output every {} steps; closed-loop spectral radius ρ = {:.3} /s, hρ = {:.2e}",
+        sc.step(),
+        sc.steps(),
+        sc.output_stride(),
+        rho,
+        sc.step() * rho
+    );
+    s
+}
+
+/// Theorem 1's conditions (eqs. 24–25), its witness and 𝕄, and the error system's stability.
+fn theorem_report(s: &mut String, sc: &Scenario) {
     let r = sc.theorem1();
     let _ = writeln!(
         s,
@@ -284,17 +300,6 @@ fn design_report(source: &str, sc: &Scenario) -> String {
         if r.error_abscissa < 0.0 { "Hurwitz, the errors converge" } else { "NOT Hurwitz" },
         r.error_abscissa_eq10
     );
-    let rho = sc.closed_loop_spectral_radius();
-    let _ = writeln!(
-        s,
-        "RK4: h = {} s, {} steps, output every {} steps; closed-loop spectral radius ρ = {:.3} /s, hρ = {:.2e}",
-        sc.step(),
-        sc.steps(),
-        sc.output_stride(),
-        rho,
-        sc.step() * rho
-    );
-    s
 }
 
 fn final_report(sc: &Scenario, tr: &Trajectory, elapsed: std::time::Duration) -> String {
