@@ -329,13 +329,7 @@ impl Node {
         } else {
             CongestionControl::Drop
         };
-        s.put(key.to_string(), bytes)
-            .congestion_control(cc)
-            .wait()
-            .map_err(|e| SwarmError::Zenoh {
-                what: format!("publish on {key}"),
-                detail: e.to_string(),
-            })
+        crate::net::publish(s, key, bytes, cc)
     }
 
     fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {

@@ -19,6 +19,7 @@
 
 use std::path::PathBuf;
 
+use zenoh::qos::CongestionControl;
 use zenoh::{Config, Session, Wait};
 
 use crate::SwarmError;
@@ -152,4 +153,22 @@ fn open(c: Config, what: &str) -> Result<Session, SwarmError> {
         what: what.into(),
         detail: e.to_string(),
     })
+}
+
+/// Publishes `bytes` on `key` (the agents' and the world's one way to send), naming the key in
+/// the error.
+pub(crate) fn publish(
+    session: &Session,
+    key: &str,
+    bytes: Vec<u8>,
+    cc: CongestionControl,
+) -> Result<(), SwarmError> {
+    session
+        .put(key.to_string(), bytes)
+        .congestion_control(cc)
+        .wait()
+        .map_err(|e| SwarmError::Zenoh {
+            what: format!("publish on {key}"),
+            detail: e.to_string(),
+        })
 }

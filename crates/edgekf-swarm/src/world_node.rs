@@ -215,14 +215,8 @@ impl Inbox {
 
 impl Node<'_> {
     fn put<T: wire::Body>(&self, key: &str, body: &T) -> Result<(), SwarmError> {
-        self.session
-            .put(key.to_string(), wire::encode(&self.id, body))
-            .congestion_control(CongestionControl::Block)
-            .wait()
-            .map_err(|e| SwarmError::Zenoh {
-                what: format!("publish on {key}"),
-                detail: e.to_string(),
-            })
+        let bytes = wire::encode(&self.id, body);
+        crate::net::publish(&self.session, key, bytes, CongestionControl::Block)
     }
 
     fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {
