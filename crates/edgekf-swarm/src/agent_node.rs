@@ -13,6 +13,7 @@ use zenoh::{Session, Wait};
 
 use crate::events::{self, Chan, Event, Events, Slot};
 use crate::keys::Keys;
+use crate::net::Publishers;
 use crate::stats::{Link, LinkStats};
 use crate::wire::{self, ScenarioId};
 use crate::{Endpoints, Mode, SwarmError};
@@ -167,8 +168,9 @@ struct Node {
     o: AgentOptions,
     agent: Agent,
     neighbours: Vec<usize>,
-    world: Session,
     mesh: Session,
+    to_world: Publishers,
+    to_mesh: Publishers,
     events: Events<Inbox>,
     sent_inputs: u64,
     sent_exchanges: u64,
@@ -217,6 +219,7 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     events.liveliness(&world, &keys.alive_agents())?;
     for &j in &neighbours {
         events.subscribe(&mesh, &keys.mesh_of(j), Chan::Mesh)?;
+        events.expect(&mesh, [keys.input(j), keys.exchange(j)])?;
     }
     let _token = world
         .liveliness()
@@ -233,7 +236,8 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
         o: o.clone(),
         agent,
         neighbours,
-        world,
+        to_world: Publishers::new(&world, CongestionControl::Block),
+        to_mesh: Publishers::new(&mesh, CongestionControl::Drop),
         mesh,
         events,
         sent_inputs: 0,
@@ -319,17 +323,11 @@ impl Inbox {
 
 impl Node {
     fn put(&self, session_world: bool, key: &str, bytes: Vec<u8>) -> Result<(), SwarmError> {
-        let s = if session_world {
-            &self.world
+        if session_world {
+            self.to_world.publish(key, bytes)
         } else {
-            &self.mesh
-        };
-        let cc = if session_world {
-            CongestionControl::Block
-        } else {
-            CongestionControl::Drop
-        };
-        crate::net::publish(s, key, bytes, cc)
+            self.to_mesh.publish(key, bytes)
+        }
     }
 
     fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {

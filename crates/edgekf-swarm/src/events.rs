@@ -163,6 +163,28 @@ impl<S: Inbox> Events<S> {
         Ok(())
     }
 
+    /// Declares `keys`, the concrete keys a wildcard subscription hears (`agent/*/output`,
+    /// `agent/<j>/*`): Zenoh then keeps each one's route instead of matching the key against
+    /// every subscription for every message. The declaration stays in this process's tables.
+    pub(crate) fn expect(
+        &mut self,
+        session: &Session,
+        keys: impl IntoIterator<Item = String>,
+    ) -> Result<(), SwarmError> {
+        for key in keys {
+            let ke =
+                session
+                    .declare_keyexpr(key.clone())
+                    .wait()
+                    .map_err(|e| SwarmError::Zenoh {
+                        what: format!("declare {key}"),
+                        detail: e.to_string(),
+                    })?;
+            self.subs.insert(format!("key {key}"), Box::new(ke));
+        }
+        Ok(())
+    }
+
     /// Follows the liveliness tokens under `key` (those present now are delivered first).
     pub(crate) fn liveliness(&mut self, session: &Session, key: &str) -> Result<(), SwarmError> {
         let shared = Arc::clone(&self.shared);

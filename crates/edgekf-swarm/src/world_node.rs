@@ -11,11 +11,12 @@ use edgekf::agent::{Output, World};
 use edgekf::scenario::Scenario;
 use edgekf::sim::Results;
 use zenoh::qos::CongestionControl;
-use zenoh::{Session, Wait};
+use zenoh::Wait;
 
 use crate::agent_node::{Control, Status};
 use crate::events::{self, Chan, Event, Events, Slot};
 use crate::keys::Keys;
+use crate::net::Publishers;
 use crate::stats::{Link, LinkStats, NetworkStats};
 use crate::wire::{self, ScenarioId};
 use crate::{Endpoints, Mode, SwarmError};
@@ -88,7 +89,7 @@ struct Node<'a> {
     id: ScenarioId,
     keys: Keys,
     o: &'a WorldOptions,
-    session: Session,
+    publishers: Publishers,
     events: Events<Inbox>,
     n: usize,
     gone: BTreeSet<usize>,
@@ -131,13 +132,14 @@ pub fn run_world(
         departed: Vec::new(),
     });
     events.subscribe(&session, &keys.outputs(), Chan::Output)?;
+    events.expect(&session, (0..n).map(|i| keys.output(i)))?;
     events.subscribe(&session, &keys.statuses(), Chan::Status)?;
     events.liveliness(&session, &keys.alive_agents())?;
     let mut node = Node {
         id,
         keys,
         o,
-        session,
+        publishers: Publishers::new(&session, CongestionControl::Block),
         events,
         n,
         gone: BTreeSet::new(),
@@ -216,7 +218,7 @@ impl Inbox {
 impl Node<'_> {
     fn put<T: wire::Body>(&self, key: &str, body: &T) -> Result<(), SwarmError> {
         let bytes = wire::encode(&self.id, body);
-        crate::net::publish(&self.session, key, bytes, CongestionControl::Block)
+        self.publishers.publish(key, bytes)
     }
 
     fn inbox(&self) -> MutexGuard<'_, Slot<Inbox>> {
