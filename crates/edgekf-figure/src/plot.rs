@@ -464,9 +464,16 @@ fn metric_figure(
         let diffs: Vec<Panel> = groups
             .iter()
             .map(|g| {
+                // The group's name in the title while it fits the panel's width (the note
+                // below the figure names every member either way).
+                let name = coincide::group_name(&g.group.labels);
+                let which = if name.chars().count() <= 70 {
+                    name
+                } else {
+                    format!("{} curves, named below", g.group.members.len())
+                };
                 let mut d = panel.difference_panel(&g.group).with_title(format!(
-                    "differences within the coinciding curves ({})",
-                    coincide::group_name(&g.group.labels)
+                    "differences within the coinciding curves ({which})"
                 ));
                 d.inset = None;
                 d

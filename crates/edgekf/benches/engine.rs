@@ -16,6 +16,7 @@
 use std::time::Instant;
 
 use edgekf::estimate::batch::{joseph_step, settled, Mat};
+use edgekf::rng::Streams;
 use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -69,15 +70,9 @@ fn minimal(sc: &Scenario) -> f64 {
                 .sum()
         })
         .collect();
-    let mut rngs: Vec<Xoshiro256PlusPlus> = (0..runs)
-        .map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64))
-        .collect();
+    let mut streams = Streams::new(0..runs as u64);
     let mut z = vec![0.0; nd * runs];
-    for (r, rng) in rngs.iter_mut().enumerate() {
-        for a in 0..nd {
-            z[a * runs + r] = rng.sample(StandardNormal);
-        }
-    }
+    streams.fill_normals(&mut z);
     let q: Vec<Mat<D>> = (0..me)
         .map(|e| Mat::<D>::from_fn(|a, b| m.edge_q(e, e)[(a, b)]))
         .collect();
@@ -100,14 +95,8 @@ fn minimal(sc: &Scenario) -> f64 {
     let mut y = vec![0.0; md * runs];
     let mut check = 0.0;
     for k in 1..=sc.steps() {
-        for (r, rng) in rngs.iter_mut().enumerate() {
-            for a in 0..md {
-                eta[a * runs + r] = rng.sample(StandardNormal);
-            }
-            for a in 0..nd {
-                xi[a * runs + r] = rng.sample(StandardNormal);
-            }
-        }
+        streams.fill_normals(&mut eta);
+        streams.fill_normals(&mut xi);
         wv.fill(0.0);
         for i in 0..n {
             for j in 0..=i {
@@ -183,22 +172,34 @@ fn minimal(sc: &Scenario) -> f64 {
 }
 
 /// The draws alone: per step and run the minimal loop's M·D measurement-mean and N·D process
-/// normals, summed so that they are not optimised away. Any implementation that draws the same
-/// randomness with the same generator costs at least this per agent-step.
-fn draws_only(sc: &Scenario) -> f64 {
+/// normals, each kept from being optimised away by `black_box` (no summing: a chain of
+/// additions would cost more than the draws). Any implementation that draws the same
+/// randomness with the same generator costs at least this per agent-step. `lanes`: the
+/// engine's generator (`edgekf::rng`, four runs per vector); otherwise `rand_distr`'s ziggurat
+/// on one Xoshiro256++ per run (the engine's generator before 2026-12-04).
+fn draws_only(sc: &Scenario, lanes: bool) -> f64 {
     const D: usize = 2;
     let m = sc.model();
     let (n, runs) = (m.agents(), sc.runs());
     let per_run = (m.num_edges() + n) * D;
+    let mut check = 0.0;
+    if lanes {
+        let mut streams = Streams::new(0..runs as u64);
+        let mut buf = vec![0.0; per_run * runs];
+        for _ in 0..sc.steps() {
+            streams.fill_normals(&mut buf);
+            std::hint::black_box(&mut buf);
+        }
+        return buf.iter().sum();
+    }
     let mut rngs: Vec<Xoshiro256PlusPlus> = (0..runs)
         .map(|r| Xoshiro256PlusPlus::seed_from_u64(r as u64))
         .collect();
-    let mut check = 0.0;
     for _ in 0..sc.steps() {
         for rng in &mut rngs {
             for _ in 0..per_run {
                 let x: f64 = rng.sample(StandardNormal);
-                check += x;
+                check = std::hint::black_box(x);
             }
         }
     }
@@ -238,12 +239,17 @@ fn main() {
     let (wall, c) = fastest(&|| minimal(&sc));
     let base = per(wall, &sc, 1);
     println!("minimal SoA loop (rkf)       {base:7.1}   (checksum {c:.3e})");
-    let (wall, c) = fastest(&|| draws_only(&sc));
-    let draws = per(wall, &sc, 1);
     let m = sc.model();
+    let normals = (m.num_edges() + m.agents()) * 2 / m.agents();
+    let (wall, c) = fastest(&|| draws_only(&sc, true));
+    let draws = per(wall, &sc, 1);
     println!(
-        "draws alone ({} normals)      {draws:7.1}   (checksum {c:.3e}; the floor of any loop drawing them)",
-        (m.num_edges() + m.agents()) * 2 / m.agents()
+        "draws alone ({normals} normals)      {draws:7.1}   (checksum {c:.3e}; edgekf::rng, 4 lanes: the floor of any loop drawing them)"
+    );
+    let (wall, c) = fastest(&|| draws_only(&sc, false));
+    let scalar = per(wall, &sc, 1);
+    println!(
+        "  the same, rand_distr       {scalar:7.1}   (checksum {c:.3e}; one Xoshiro256++ per run, the engine's before 2026-12-04)"
     );
     let mut rkf = f64::NAN;
     for set in [

@@ -103,6 +103,7 @@ pub mod graph;
 pub mod linalg;
 pub mod metrics;
 pub mod noise;
+pub mod rng;
 pub mod scenario;
 pub mod sim;
 pub mod step;

@@ -1,7 +1,9 @@
 //! The world stage: the per-run random streams, the draws of each step in a documented, stable
 //! order, the noise factors, and the targets.
 //!
-//! Run `r` draws from its own Xoshiro256++ stream seeded from `(seed, r)`, in this order:
+//! Run `r` draws from its own xoshiro256++ stream seeded from `(seed, r)` ([`crate::rng`]: normals
+//! from its ziggurat, drawn for four runs at a time in SIMD lanes, each run's values those of
+//! its own stream), in this order:
 //! 1. at the start: the initial positions (N·D standard normals), then, with random departures,
 //!    the departing subset (a partial Fisher–Yates shuffle of the followers: one uniform integer
 //!    per departing agent);
@@ -12,13 +14,12 @@
 //! New draws are appended, never reordered: that order is part of the reproducibility contract.
 
 use nalgebra::DMatrix;
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
-use rand_xoshiro::Xoshiro256PlusPlus;
+use rand::Rng;
 
 use crate::control::maneuver::{target_positions, Trajectory};
 use crate::estimate::Target;
 use crate::linalg::{batch_gemv, psd_factor, to_row_major};
+use crate::rng::Streams;
 
 /// Seed of run `r`'s stream (SplitMix64 finaliser of the pair).
 pub fn run_seed(seed: u64, r: usize) -> u64 {
@@ -137,7 +138,7 @@ pub(crate) struct Draws {
 /// The per-run streams of a chunk and the per-step draws.
 #[derive(Debug, Clone)]
 pub(crate) struct World {
-    rngs: Vec<Xoshiro256PlusPlus>,
+    streams: Streams,
     pub(crate) draws: Draws,
     md: usize,
     nd: usize,
@@ -164,9 +165,7 @@ impl World {
     ) -> Self {
         let runs = range.len();
         Self {
-            rngs: range
-                .map(|r| Xoshiro256PlusPlus::seed_from_u64(run_seed(seed, r)))
-                .collect(),
+            streams: Streams::new(range.map(|r| run_seed(seed, r))),
             draws: Draws {
                 eta: vec![0.0; if draw_eta { md * runs } else { 0 }],
                 xi: vec![0.0; if draw_xi { nd * runs } else { 0 }],
@@ -185,18 +184,21 @@ impl World {
 
     /// Runs in the chunk.
     pub(crate) fn runs(&self) -> usize {
-        self.rngs.len()
+        self.streams.len()
     }
 
     /// Initial positions `z_1 = μ + C_P ξ` (N·D rows × runs), drawn first in every stream.
     pub(crate) fn initial_positions(&mut self, mean: &[f64], cov: &DMatrix<f64>, z: &mut [f64]) {
         let d = mean.len();
         let n = self.nd / d;
-        let runs = self.rngs.len();
+        let runs = self.streams.len();
         let f = psd_factor(cov).expect("checked PSD");
-        for (lr, rng) in self.rngs.iter_mut().enumerate() {
+        let mut xi = vec![0.0; d];
+        self.streams.each(|lr, st| {
             for i in 0..n {
-                let xi: Vec<f64> = (0..d).map(|_| rng.sample(StandardNormal)).collect();
+                for x in xi.iter_mut() {
+                    *x = st.normal();
+                }
                 for a in 0..d {
                     let mut v = mean[a];
                     for (b, x) in xi.iter().enumerate() {
@@ -205,70 +207,44 @@ impl World {
                     z[(i * d + a) * runs + lr] = v;
                 }
             }
-        }
+        });
     }
 
     /// A random subset of `count` of `candidates` per run (partial Fisher–Yates), drawn after
     /// the initial positions: `out[r]` lists run r's agents.
     pub(crate) fn subsets(&mut self, candidates: &[usize], count: usize) -> Vec<Vec<usize>> {
-        self.rngs
-            .iter_mut()
-            .map(|rng| {
-                let mut pool = candidates.to_vec();
-                let count = count.min(pool.len());
-                for k in 0..count {
-                    let j = rng.random_range(k..pool.len());
-                    pool.swap(k, j);
-                }
-                pool.truncate(count);
-                pool
-            })
-            .collect()
+        let mut out = Vec::with_capacity(self.streams.len());
+        self.streams.each(|_, rng| {
+            let mut pool = candidates.to_vec();
+            let count = count.min(pool.len());
+            for k in 0..count {
+                let j = rng.random_range(k..pool.len());
+                pool.swap(k, j);
+            }
+            pool.truncate(count);
+            out.push(pool);
+        });
+        out
     }
 
     /// The draws of one step, in the fixed per-run order.
     pub(crate) fn draw_step(&mut self) {
         // Each run's stream draws in the documented order (η, then ξ, then the link and
-        // availability uniforms, each by row); see `fill_rows` for the loop order.
-        let runs = self.rngs.len();
+        // availability uniforms, each by row); `Streams` fills rows × runs buffers.
+        let runs = self.streams.len();
         let d = &mut self.draws;
-        let rngs = &mut self.rngs;
         if self.draw_eta {
-            fill_rows(&mut d.eta[..self.md * runs], rngs, |g| {
-                g.sample(StandardNormal)
-            });
+            self.streams.fill_normals(&mut d.eta[..self.md * runs]);
         }
         if self.draw_xi {
-            fill_rows(&mut d.xi[..self.nd * runs], rngs, |g| {
-                g.sample(StandardNormal)
-            });
+            self.streams.fill_normals(&mut d.xi[..self.nd * runs]);
         }
         if self.draw_comm {
-            fill_rows(&mut d.comm[..self.m * runs], rngs, |g| g.random::<f64>());
+            self.streams.fill_uniforms(&mut d.comm[..self.m * runs]);
         }
         if self.draw_avail {
-            fill_rows(&mut d.avail[..self.m * runs], rngs, |g| g.random::<f64>());
+            self.streams.fill_uniforms(&mut d.avail[..self.m * runs]);
         }
-    }
-}
-
-/// Fills `buf` (rows × runs, runs innermost) with `draw`, each run's entries from its own
-/// stream in row order. The loop runs over the runs outermost with the stream's state copied
-/// into a local, so that it stays in registers between draws (the same values as any other
-/// loop order: every stream sees the same sequence of calls).
-#[inline]
-fn fill_rows(
-    buf: &mut [f64],
-    rngs: &mut [Xoshiro256PlusPlus],
-    draw: impl Fn(&mut Xoshiro256PlusPlus) -> f64,
-) {
-    let runs = rngs.len();
-    for (r, rng) in rngs.iter_mut().enumerate() {
-        let mut g = rng.clone();
-        for v in buf.iter_mut().skip(r).step_by(runs) {
-            *v = draw(&mut g);
-        }
-        *rng = g;
     }
 }
 
