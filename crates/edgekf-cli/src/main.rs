@@ -278,6 +278,18 @@ impl Observer for Progress {
 
 fn main() -> ExitCode {
     interrupt::install();
+    #[cfg(not(feature = "swarm"))]
+    if let Some(cmd) = std::env::args()
+        .nth(1)
+        .filter(|a| matches!(a.as_str(), "agent" | "world" | "swarm"))
+    {
+        // Not clap's "unrecognized subcommand": the command exists, this build lacks it.
+        eprintln!(
+            "edgekf: error: `edgekf {cmd}` runs the agents over Zenoh, which this build leaves out \
+             (feature `swarm`); build it with `cargo build --release -p edgekf-cli --features swarm`"
+        );
+        return ExitCode::from(2);
+    }
     let cli = Cli::parse();
     let code = match dispatch(cli) {
         Ok(code) => code,

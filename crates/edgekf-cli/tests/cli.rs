@@ -558,3 +558,19 @@ fn a_ratio_plot_to_an_unknown_estimator_is_refused() {
         "{e}"
     );
 }
+
+/// Without the feature `swarm` (the default build), `edgekf swarm|agent|world` say how to get
+/// them instead of clap's "unrecognized subcommand".
+#[cfg(not(feature = "swarm"))]
+#[test]
+fn swarm_commands_without_the_feature_say_how_to_build_them() {
+    for cmd in ["swarm", "agent", "world"] {
+        let o = edgekf(&[cmd, "scenario.toml"]);
+        assert_eq!(o.status.code(), Some(2), "{cmd}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains(&format!("`edgekf {cmd}`")) && err.contains("--features swarm"),
+            "{cmd}: {err}"
+        );
+    }
+}
