@@ -8,7 +8,7 @@ window mean of `est_error` and the consistency mean ε² / mean cov_trace over t
 the means ± standard errors, their difference in standard errors (Welch), and the loss the
 agents measured (network.csv).
 
-    sudo python3 scripts/swarm/loss_study.py --edgekf target/release/edgekf \
+    sudo python3 scripts/swarm/study.py --edgekf target/release/edgekf \
         --scenario scenarios/thesis-fig6.2.toml --p 25 50 --runs 10 --steps 10000 --window 5 10
 
 Only the first `rkf-ar` estimator of the scenario is kept (with `p_fail` set to p for the

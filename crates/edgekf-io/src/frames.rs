@@ -63,11 +63,7 @@ fn num(s: &mut String, v: f64) {
 
 /// `[[…]; frames]`: `per` numbers per frame.
 fn rows(s: &mut String, v: &[f64], per: usize) {
-    s.push('[');
-    for (f, row) in v.chunks(per.max(1)).enumerate() {
-        if f > 0 {
-            s.push(',');
-        }
+    per_frame(s, v, per, |s, row| {
         s.push('[');
         for (i, &x) in row.iter().enumerate() {
             if i > 0 {
@@ -76,20 +72,26 @@ fn rows(s: &mut String, v: &[f64], per: usize) {
             num(s, x);
         }
         s.push(']');
-    }
-    s.push(']');
+    });
 }
 
 /// `["0101…"; frames]`: `per` flags per frame.
 fn flags(s: &mut String, v: &[bool], per: usize) {
+    per_frame(s, v, per, |s, row| {
+        s.push('"');
+        s.extend(row.iter().map(|&b| if b { '1' } else { '0' }));
+        s.push('"');
+    });
+}
+
+/// `[frame, frame, …]`: `v` cut into frames of `per` values, each written by `frame`.
+fn per_frame<T>(s: &mut String, v: &[T], per: usize, frame: impl Fn(&mut String, &[T])) {
     s.push('[');
     for (f, row) in v.chunks(per.max(1)).enumerate() {
         if f > 0 {
             s.push(',');
         }
-        s.push('"');
-        s.extend(row.iter().map(|&b| if b { '1' } else { '0' }));
-        s.push('"');
+        frame(s, row);
     }
     s.push(']');
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{ar, build, names, run, spec};
+use common::{ar, build, names, run, spec, with_faults};
 use edgekf::scenario::{
     CommSpec, DepartureSpec, EstimatorEntry, InitAround, KeyframesSpec, LeaderSpec, ManeuverSpec,
     Resolved, Scenario, ScenarioSpec,
@@ -268,12 +268,7 @@ fn every_estimator_is_deterministic_and_shards_merge_exactly() {
             ar: Some(ar()),
         };
         if faults {
-            s.faults.availability = 0.7;
-            s.faults.departures = vec![DepartureSpec {
-                agent: 5,
-                at: 0.1,
-                rejoin: Some(0.2),
-            }];
+            with_faults(&mut s);
         }
         let sc = build(&s);
         let one = threads(&sc, 1);

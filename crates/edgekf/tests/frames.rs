@@ -5,8 +5,8 @@
 
 mod common;
 
-use common::{build, names, spec, table};
-use edgekf::scenario::{DepartureSpec, Scenario};
+use common::{build, names, spec, table, with_faults};
+use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Options, Results};
 
 const KINDS: &[&str] = &["none", "mle", "rkf", "jrkf", "crkf"];
@@ -33,12 +33,7 @@ fn scenario(faults: bool) -> Scenario {
     kinds.push(table("mmse", "mmse", None, Some(1.0)));
     let mut s = spec(0.001, 0.1, 300, RUNS, 10, kinds);
     if faults {
-        s.faults.availability = 0.7;
-        s.faults.departures = vec![DepartureSpec {
-            agent: 5,
-            at: 0.1,
-            rejoin: Some(0.2),
-        }];
+        with_faults(&mut s);
     }
     build(&s)
 }

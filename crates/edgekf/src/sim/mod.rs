@@ -226,10 +226,7 @@ impl Results {
             total_runs: total,
             paths_run: first.paths_run,
             frame_steps: first.frame_steps.clone(),
-            frame_targets: parts
-                .iter()
-                .find(|p| !p.frame_targets.is_empty())
-                .map_or_else(Vec::new, |p| p.frame_targets.clone()),
+            frame_targets: first_recorded(parts.iter().map(|p| &p.frame_targets)),
             estimators: Vec::new(),
             input_acov: Vec::new(),
         };
@@ -479,11 +476,12 @@ pub(crate) fn assemble(
         total_runs: sc.runs(),
         paths_run: sc.paths_run(),
         frame_steps,
-        frame_targets: parts
-            .iter()
-            .flat_map(|p| p.lanes.iter())
-            .find(|l| !l.frame_targets.is_empty())
-            .map_or_else(Vec::new, |l| l.frame_targets.clone()),
+        frame_targets: first_recorded(
+            parts
+                .iter()
+                .flat_map(|p| p.lanes.iter())
+                .map(|l| &l.frame_targets),
+        ),
         estimators,
         input_acov,
     }
@@ -620,4 +618,10 @@ impl<'a> Progress<'a> {
         self.obs.on_progress((done * self.runs) as u64);
         !self.obs.cancelled()
     }
+}
+
+/// The targets of the recorded frames: the same in every part that recorded any (the first
+/// run's chunk or shard has them).
+fn first_recorded<'a>(mut parts: impl Iterator<Item = &'a Vec<f64>>) -> Vec<f64> {
+    parts.find(|t| !t.is_empty()).cloned().unwrap_or_default()
 }

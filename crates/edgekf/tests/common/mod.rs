@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use edgekf::estimate::ArModel;
-use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
+use edgekf::scenario::{DepartureSpec, EstimatorEntry, Scenario, ScenarioSpec};
 use edgekf::sim::Results;
 
 /// A hexagon scenario spec with the given noise, size and estimators (seed 7).
@@ -23,6 +23,17 @@ pub fn spec(
     s.noise.sigma_w = sigma_w;
     s.noise.sigma_v = sigma_v;
     s
+}
+
+/// The faults of the determinism tests: links available 70 % of the time, and agent 5 away
+/// from 0.1 s to 0.2 s (its departure and its return within a few hundred steps).
+pub fn with_faults(s: &mut ScenarioSpec) {
+    s.faults.availability = 0.7;
+    s.faults.departures = vec![DepartureSpec {
+        agent: 5,
+        at: 0.1,
+        rejoin: Some(0.2),
+    }];
 }
 
 /// A checked scenario from a spec.
