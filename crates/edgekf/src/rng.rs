@@ -355,13 +355,14 @@ impl Streams {
                 unsafe { avx2::fill(self, buf, r0) };
             }
         }
-        self.each(|r, st| {
-            if r >= alone {
-                for v in buf.iter_mut().skip(r).step_by(runs) {
-                    *v = st.normal();
-                }
+        // The runs that fill no vector, each on its own.
+        for r in alone..runs {
+            let mut st = self.get(r);
+            for v in buf.iter_mut().skip(r).step_by(runs) {
+                *v = st.normal();
             }
-        });
+            self.set(r, &st);
+        }
     }
 }
 
