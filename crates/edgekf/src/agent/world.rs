@@ -139,9 +139,10 @@ impl<'a> World<'a> {
         self.k += 1;
         let k = self.k;
         self.shared.advance(k);
-        let sensing = &self.shared.sensing;
         for (lane, def) in self.lanes.iter_mut().zip(self.sc.estimators()) {
-            let vbar = &sensing.vbar[sensing.index_of(def.samples())];
+            let noise = self
+                .shared
+                .meas_noise(self.shared.sensing.index_of(def.samples()));
             EdgeStates {
                 x: &mut lane.x,
                 y: &mut lane.y,
@@ -151,7 +152,7 @@ impl<'a> World<'a> {
                 self.cx.edges,
                 &lane.z,
                 &lane.u,
-                vbar,
+                noise,
                 self.cx.d,
                 self.cx.dt,
                 1,

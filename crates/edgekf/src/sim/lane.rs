@@ -184,7 +184,7 @@ impl Lane {
             cx.edges,
             &s.z,
             &s.u,
-            &sh.sensing.vbar[self.noise],
+            sh.meas_noise(self.noise),
             cx.d,
             cx.dt,
             cx.runs,

@@ -54,24 +54,30 @@ impl Sensing {
         self.t_values.binary_search(&t).expect("listed")
     }
 
-    /// `v̄ = chol(R/T) η` for every T from this step's normals.
+    /// The measurement-mean noise of T value `index` for [`EdgeStates::form`]: the stored `v̄`
+    /// (zero while `active` is false: R = 0, no η drawn), or with D = 2 the factors and this
+    /// step's normals `eta`, applied in `form` (the same products in the same order, so the same
+    /// bits, without a pass that writes `v̄` and one that reads it back).
+    pub(crate) fn noise<'a>(&'a self, index: usize, eta: &'a [f64], active: bool) -> MeasNoise<'a> {
+        if active && self.d == 2 {
+            MeasNoise::Factor {
+                factor: &self.factors[index],
+                eta,
+            }
+        } else {
+            MeasNoise::Mean(&self.vbar[index])
+        }
+    }
+
+    /// `v̄ = chol(R/T) η` for every T from this step's normals. With D = 2 nothing is stored:
+    /// [`EdgeStates::form`] applies the factor as it forms `ȳ` ([`Sensing::noise`]).
     pub(crate) fn update(&mut self, eta: &[f64]) {
         let (d, runs) = (self.d, self.runs);
+        if d == 2 {
+            return;
+        }
         for (f, v) in self.factors.iter().zip(self.vbar.iter_mut()) {
             let m = f.len() / (d * d);
-            if d == 2 {
-                // Both coordinates of an edge in one pass over the runs.
-                for e in 0..m {
-                    let c = &f[e * 4..e * 4 + 4];
-                    let (v0, v1) = v[e * 2 * runs..(e + 1) * 2 * runs].split_at_mut(runs);
-                    let (h0, h1) = eta[e * 2 * runs..(e + 1) * 2 * runs].split_at(runs);
-                    for (((a, b), x), y) in v0.iter_mut().zip(v1.iter_mut()).zip(h0).zip(h1) {
-                        *a = c[0] * x + c[1] * y;
-                        *b = c[2] * x + c[3] * y;
-                    }
-                }
-                continue;
-            }
             for e in 0..m {
                 let span = e * d * runs..(e + 1) * d * runs;
                 batch_gemv(
@@ -85,6 +91,21 @@ impl Sensing {
             }
         }
     }
+}
+
+/// The noise `v̄` of the measurement means, as [`EdgeStates::form`] takes it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum MeasNoise<'a> {
+    /// `v̄` itself (M·D rows × runs).
+    Mean(&'a [f64]),
+    /// D = 2: `v̄_e = chol(R_e / T) η_e`, each edge's factor row-major (M × 4) and the normals
+    /// `η` (M·2 rows × runs).
+    Factor {
+        /// The factors.
+        factor: &'a [f64],
+        /// This step's normals.
+        eta: &'a [f64],
+    },
 }
 
 /// What agent `i` senses of each directed edge `(i, j)` at step k, from the positions and the
@@ -102,39 +123,37 @@ pub(crate) struct EdgeStates<'a> {
 }
 
 impl EdgeStates<'_> {
-    /// Forms the edge arrays of `edges` from positions `z`, inputs `u` and noise `vbar`.
+    /// Forms the edge arrays of `edges` from positions `z`, inputs `u` and the measurement
+    /// noise (compiled for AVX2 when the CPU has it, without fused multiply–add: the bits of the
+    /// portable code).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn form(
         &mut self,
         edges: &[(usize, usize)],
         z: &[f64],
         u: &[f64],
-        vbar: &[f64],
+        noise: MeasNoise<'_>,
         d: usize,
         dt: f64,
         runs: usize,
     ) {
-        for (e, &(i, j)) in edges.iter().enumerate() {
-            if d == 2 {
-                // Both coordinates of an edge in one pass over the runs.
-                let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
-                let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
-                let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
-                let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
-                let (zi, zj) = (&z[ri..ri + 2 * runs], &z[rj..rj + 2 * runs]);
-                let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
-                let v = &vbar[re..re + 2 * runs];
-                for r in 0..runs {
-                    let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
-                    x0[r] = a;
-                    x1[r] = b;
-                    y0[r] = a + v[r];
-                    y1[r] = b + v[runs + r];
-                    d0[r] = dt * (ui[r] - uj[r]);
-                    d1[r] = dt * (ui[runs + r] - uj[runs + r]);
-                }
-                continue;
+        let inputs = Inputs { z, u, dt, runs };
+        #[cfg(target_arch = "x86_64")]
+        {
+            if d == 2 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2 (checked just above).
+                unsafe { self.form2_avx2(edges, &inputs, noise) };
+                return;
             }
+        }
+        if d == 2 {
+            self.form2(edges, &inputs, noise);
+            return;
+        }
+        let MeasNoise::Mean(vbar) = noise else {
+            unreachable!("the factor form is D = 2 only")
+        };
+        for (e, &(i, j)) in edges.iter().enumerate() {
             for a in 0..d {
                 let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
                 let (zi, zj) = (&z[ri..ri + runs], &z[rj..rj + runs]);
@@ -152,4 +171,63 @@ impl EdgeStates<'_> {
             }
         }
     }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn form2_avx2(
+        &mut self,
+        edges: &[(usize, usize)],
+        inp: &Inputs<'_>,
+        noise: MeasNoise<'_>,
+    ) {
+        self.form2(edges, inp, noise);
+    }
+
+    /// D = 2: both coordinates of an edge in one pass over the runs.
+    #[inline(always)]
+    fn form2(&mut self, edges: &[(usize, usize)], inp: &Inputs<'_>, noise: MeasNoise<'_>) {
+        let Inputs { z, u, dt, runs } = *inp;
+        for (e, &(i, j)) in edges.iter().enumerate() {
+            let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
+            let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
+            let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
+            let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
+            let (zi, zj) = (&z[ri..ri + 2 * runs], &z[rj..rj + 2 * runs]);
+            let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
+            for r in 0..runs {
+                let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
+                x0[r] = a;
+                x1[r] = b;
+                d0[r] = dt * (ui[r] - uj[r]);
+                d1[r] = dt * (ui[runs + r] - uj[runs + r]);
+            }
+            match noise {
+                MeasNoise::Mean(vbar) => {
+                    let v = &vbar[re..re + 2 * runs];
+                    for r in 0..runs {
+                        y0[r] = x0[r] + v[r];
+                        y1[r] = x1[r] + v[runs + r];
+                    }
+                }
+                MeasNoise::Factor { factor, eta } => {
+                    let c = &factor[e * 4..e * 4 + 4];
+                    let (h0, h1) = eta[re..re + 2 * runs].split_at(runs);
+                    for r in 0..runs {
+                        // `v̄ = chol(R/T) η` as `Sensing::update` evaluates it for D ≠ 2.
+                        y0[r] = x0[r] + (c[0] * h0[r] + c[1] * h1[r]);
+                        y1[r] = x1[r] + (c[2] * h0[r] + c[3] * h1[r]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The per-agent inputs of [`EdgeStates::form`].
+#[derive(Clone, Copy)]
+struct Inputs<'a> {
+    z: &'a [f64],
+    u: &'a [f64],
+    dt: f64,
+    runs: usize,
 }

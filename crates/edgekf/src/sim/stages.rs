@@ -9,7 +9,7 @@
 use std::ops::Range;
 
 use super::faults::FaultStage;
-use super::sensing::Sensing;
+use super::sensing::{MeasNoise, Sensing};
 use super::world::{Factor, Targets, World};
 use crate::control::maneuver::Trajectory;
 use crate::control::LeaderMode;
@@ -125,6 +125,14 @@ impl<'a> Shared<'a> {
     /// Whether the leaders are set on the target (the scenario's leader mode).
     pub(crate) fn target_leaders(&self, sc: &Scenario) -> bool {
         matches!(sc.leader_mode(), Some(LeaderMode::Target))
+    }
+
+    /// The measurement-mean noise of T value `index` at this step (for [`EdgeStates::form`]).
+    ///
+    /// [`EdgeStates::form`]: super::sensing::EdgeStates::form
+    pub(crate) fn meas_noise(&self, index: usize) -> MeasNoise<'_> {
+        self.sensing
+            .noise(index, &self.world.draws.eta, self.r_active)
     }
 
     /// World, faults and sensing of step `k`.
