@@ -61,6 +61,8 @@
 
 use nalgebra::{DMatrix, Matrix3, SMatrix};
 
+use crate::linalg::with_avx2;
+
 /// Runs processed together by the batched kernels (the width of every scratch row).
 pub const TILE: usize = 64;
 
@@ -646,33 +648,76 @@ impl<const D: usize> CaBatch<D> {
         let CaWork { gain, innov, .. } = work;
         assert_eq!(y.len(), D * runs, "y length");
         assert_eq!(mask.len(), runs, "mask length");
-        for c in 0..D {
-            let xc = &self.mean[c * runs..(c + 1) * runs];
-            let yc = &y[c * runs..(c + 1) * runs];
-            let v = &mut innov[c * runs..(c + 1) * runs];
-            for r in 0..runs {
-                let d = yc[r] - xc[r];
-                v[r] = if mask[r] { d } else { 0.0 };
-            }
-        }
-        for (t, gain) in gain
-            .chunks_exact(Self::NK)
-            .take(runs.div_ceil(TILE))
-            .enumerate()
-        {
-            let r0 = t * TILE;
-            let w = TILE.min(runs - r0);
-            for a in 0..3 * D {
-                let xa = &mut self.mean[a * runs + r0..a * runs + r0 + w];
-                for c in 0..D {
-                    let k = &gain[a * D + c][..w];
-                    let v = &innov[c * runs + r0..c * runs + r0 + w];
-                    for l in 0..w {
-                        xa[l] += k[l] * v[l];
+        with_avx2(
+            #[inline(always)]
+            || {
+                masked_innovations(&self.mean, y, mask, innov, D, runs);
+                for (t, gain) in gain
+                    .chunks_exact(Self::NK)
+                    .take(runs.div_ceil(TILE))
+                    .enumerate()
+                {
+                    let r0 = t * TILE;
+                    let w = TILE.min(runs - r0);
+                    for a in 0..3 * D {
+                        let xa = &mut self.mean[a * runs + r0..a * runs + r0 + w];
+                        for c in 0..D {
+                            let k = &gain[a * D + c][..w];
+                            let v = &innov[c * runs + r0..c * runs + r0 + w];
+                            for l in 0..w {
+                                xa[l] += k[l] * v[l];
+                            }
+                        }
                     }
                 }
-            }
-        }
+            },
+        );
+    }
+
+    /// [`Self::correct_mean_in`] after a [`Self::correct_cov_in`] on `work` of a batch of
+    /// `runs / group` runs (a covariance shared by groups of runs) whose run `q` gives its gain
+    /// to the runs `q·group..(q+1)·group` of this batch: the arithmetic of
+    /// [`CaWork::broadcast_gains`] then [`Self::correct_mean_in`], the same bits, without
+    /// writing the gains out per run.
+    ///
+    /// # Panics
+    /// If `y` or `mask` have the wrong length, or `group` does not divide the runs into at most
+    /// [`TILE`] groups.
+    pub fn correct_mean_shared_in(
+        &mut self,
+        y: &[f64],
+        mask: &[bool],
+        work: &mut CaWork,
+        group: usize,
+    ) {
+        let runs = self.runs;
+        assert!(
+            group > 0 && runs % group == 0 && runs / group <= TILE,
+            "groups of equal size, at most a tile of them"
+        );
+        assert_eq!(y.len(), D * runs, "y length");
+        assert_eq!(mask.len(), runs, "mask length");
+        work.reserve(runs, D);
+        let CaWork { gain, innov, .. } = work;
+        with_avx2(
+            #[inline(always)]
+            || {
+                masked_innovations(&self.mean, y, mask, innov, D, runs);
+                for q in 0..runs / group {
+                    let span = q * group..(q + 1) * group;
+                    for a in 0..3 * D {
+                        let xa = &mut self.mean[a * runs..(a + 1) * runs][span.clone()];
+                        for c in 0..D {
+                            let k = gain[a * D + c][q];
+                            let v = &innov[c * runs..(c + 1) * runs][span.clone()];
+                            for (x, vr) in xa.iter_mut().zip(v) {
+                                *x += k * vr;
+                            }
+                        }
+                    }
+                }
+            },
+        );
     }
 
     /// Prediction of covariances and means with the caller's scratch (the means need none).
@@ -689,9 +734,38 @@ impl<const D: usize> CaBatch<D> {
     }
 }
 
+/// The innovations `ỹ − G γ̂` of the position rows (`dims × runs`), zero where `mask` is false.
+#[inline(always)]
+fn masked_innovations(
+    mean: &[f64],
+    y: &[f64],
+    mask: &[bool],
+    innov: &mut [f64],
+    dims: usize,
+    runs: usize,
+) {
+    for c in 0..dims {
+        let xc = &mean[c * runs..(c + 1) * runs];
+        let yc = &y[c * runs..(c + 1) * runs];
+        let v = &mut innov[c * runs..(c + 1) * runs];
+        for r in 0..runs {
+            let d = yc[r] - xc[r];
+            v[r] = if mask[r] { d } else { 0.0 };
+        }
+    }
+}
+
 /// `γ̂ ← F γ̂` for `dims` axes of a batch of means (`3·dims × runs`, runs innermost; entry
 /// `β·dims + d` is block `β` of axis `d`), `h = Δt`, `c = Δt²/2`.
 pub(crate) fn predict_means(mean: &mut [f64], runs: usize, dims: usize, h: f64, c: f64) {
+    with_avx2(
+        #[inline(always)]
+        || predict_means_body(mean, runs, dims, h, c),
+    );
+}
+
+#[inline(always)]
+fn predict_means_body(mean: &mut [f64], runs: usize, dims: usize, h: f64, c: f64) {
     for d in 0..dims {
         // Block rows in ascending order: row 0 reads the old rows 1 and 2.
         let i0 = d * runs;

@@ -102,6 +102,7 @@ use super::{
     cov_trace_of_agents, options_of, parse_options, quantity_of_agents, Configured, Cost,
     Estimator, EstimatorKind, Exchange, Model, Options, Step,
 };
+use crate::linalg::with_avx2;
 
 /// `kind = "garkf"`.
 #[derive(Debug, Clone, Copy)]
@@ -627,6 +628,14 @@ impl<const D: usize> Garkf<D> {
     /// Line 10: ψ (18), over feasible pairs (masked) or every observed pair (literal); held
     /// when undefined.
     fn indicator(&mut self, s: &Step<'_>) {
+        with_avx2(
+            #[inline(always)]
+            || self.indicator_body(s),
+        );
+    }
+
+    #[inline(always)]
+    fn indicator_body(&mut self, s: &Step<'_>) {
         let runs = self.ca.runs;
         let f = s.faults;
         let faults = f.measurement_faults();
@@ -662,6 +671,14 @@ impl<const D: usize> Garkf<D> {
 
     /// Line 11: the consensus (16) from `Θ̂_{k−1}` and this step's RALs.
     fn consensus(&mut self, s: &Step<'_>) {
+        with_avx2(
+            #[inline(always)]
+            || self.consensus_body(s),
+        );
+    }
+
+    #[inline(always)]
+    fn consensus_body(&mut self, s: &Step<'_>) {
         std::mem::swap(&mut self.theta, &mut self.theta_prev);
         let runs = self.ca.runs;
         let f = s.faults;

@@ -837,20 +837,18 @@ impl<const D: usize> CaEdges<D> {
                     }
                 }
                 sb.correct_cov_in(&r1[..packed_len(D)], &[all], work);
-                work.broadcast_gains(1, runs, D);
                 self.mask.fill(all);
-                b.correct_mean_in(y, &self.mask, work);
+                b.correct_mean_shared_in(y, &self.mask, work, runs);
             }
             (CaBank::Axes(b), Some(CaBank::Axes(sb)), Some(ax)) => {
                 sb.correct_cov_in(&ax.w[e], &[all; D], work);
-                work.broadcast_gains(D, runs, 1);
                 ax.mask.fill(all);
                 if all {
                     for r in 0..runs {
                         ax.rotate_in(y, r, runs);
                     }
                 }
-                b.correct_mean_in(&ax.yt, &ax.mask, work);
+                b.correct_mean_shared_in(&ax.yt, &ax.mask, work, runs);
             }
             _ => unreachable!("an edge's shared covariance has the form of its batch"),
         }
