@@ -360,28 +360,6 @@ impl CaWork {
         w
     }
 
-    /// Replaces the gains of the last correction (of a batch of `groups` runs of dimension
-    /// `dim`) by the gains of a batch of `groups · group` runs in which run `r` has the gain of
-    /// run `r / group`: what [`CaBatch::correct_mean_in`] of that larger batch reads.
-    pub fn broadcast_gains(&mut self, groups: usize, group: usize, dim: usize) {
-        let nk = 3 * dim * dim;
-        debug_assert!(groups <= 3 && nk <= 27, "a few groups of small batches");
-        let mut g = [[0.0; 3]; 27];
-        for (row, v) in g.iter_mut().enumerate().take(nk) {
-            for (q, vq) in v.iter_mut().enumerate().take(groups) {
-                *vq = self.gain[row][q];
-            }
-        }
-        let runs = groups * group;
-        self.reserve(runs, dim);
-        for r in 0..runs {
-            let (t, l) = (r / TILE, r % TILE);
-            for (row, v) in g.iter().enumerate().take(nk) {
-                self.gain[t * nk + row][l] = v[r / group];
-            }
-        }
-    }
-
     /// Grows the gain and innovation scratch for a batch of `runs` runs of dimension `dim`
     /// (no allocation once it is large enough).
     fn reserve(&mut self, runs: usize, dim: usize) {
@@ -677,8 +655,8 @@ impl<const D: usize> CaBatch<D> {
     /// [`Self::correct_mean_in`] after a [`Self::correct_cov_in`] on `work` of a batch of
     /// `runs / group` runs (a covariance shared by groups of runs) whose run `q` gives its gain
     /// to the runs `q·group..(q+1)·group` of this batch: the arithmetic of
-    /// [`CaWork::broadcast_gains`] then [`Self::correct_mean_in`], the same bits, without
-    /// writing the gains out per run.
+    /// [`Self::correct_mean_in`] with those gains copied into every run, the same bits, without
+    /// writing them out per run (`rkf_ca`'s test `shared_covariances_give_the_bits_of_per_run_ones`).
     ///
     /// # Panics
     /// If `y` or `mask` have the wrong length, or `group` does not divide the runs into at most
