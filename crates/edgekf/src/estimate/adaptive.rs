@@ -331,6 +331,32 @@ struct AgentParams {
     h: [f64; 3],
 }
 
+/// A size known at compile time ([`Const`]) or at run time (`usize`): the kernels below take
+/// their dimensions as `impl Size`, so the common blocks (the CA model's 3D × 3D with D measured
+/// rows, the RKF's D × D) get loops unrolled at their size — the same operations in the same
+/// order, so the same bits as the run-time size.
+trait Size: Copy {
+    fn get(self) -> usize;
+}
+
+/// A compile-time size.
+#[derive(Debug, Clone, Copy)]
+struct Const<const N: usize>;
+
+impl<const N: usize> Size for Const<N> {
+    #[inline(always)]
+    fn get(self) -> usize {
+        N
+    }
+}
+
+impl Size for usize {
+    #[inline(always)]
+    fn get(self) -> usize {
+        self
+    }
+}
+
 /// Scratch of one correction, sized once for the largest block.
 #[derive(Debug, Clone)]
 struct Work {
@@ -378,7 +404,15 @@ impl Work {
     /// From the prior (`x̂` then `Λ`, `blen` long) and `y`: `ν = y − H x̂`, `S = H Λ Hᵀ + R`
     /// (unseen rows: `ν = 0`, identity rows of S), `S⁻¹`, `K = Λ Hᵀ S⁻¹` and `a = S⁻¹ ν`.
     /// `Err` when S is not positive definite.
-    fn innovation(&mut self, prior: &[f64], y: &[f64], n: usize, m: usize) -> Result<(), ()> {
+    #[inline(always)]
+    fn innovation(
+        &mut self,
+        prior: &[f64],
+        y: &[f64],
+        n: impl Size,
+        m: impl Size,
+    ) -> Result<(), ()> {
+        let (n, m) = (n.get(), m.get());
         let (x, rest) = prior.split_at(n);
         let cov = &rest[..n * n];
         let seen = &self.seen[..m];
@@ -423,7 +457,9 @@ impl Work {
 
     /// Sensitivity `p` from its prior (`∂x̂`, `∂Λ`): `∂ν = −H ∂x̂`, `∂S = H ∂Λ Hᵀ (+ ∂R)`,
     /// `∂K = (∂Λ Hᵀ − K ∂S) S⁻¹` and `B = S⁻¹ ∂S`.
-    fn sensitivity(&mut self, p: usize, prior: &[f64], n: usize, m: usize, with_r: bool) {
+    #[inline(always)]
+    fn sensitivity(&mut self, p: usize, prior: &[f64], n: impl Size, m: impl Size, with_r: bool) {
+        let (n, m) = (n.get(), m.get());
         let (dx, rest) = prior.split_at(n);
         let dcov = &rest[..n * n];
         let seen = &self.seen[..m];
@@ -453,7 +489,9 @@ impl Work {
 
     /// Adds this measurement's score `g_p = −½ tr B_p + ½ aᵀ ∂_pS a − aᵀ ∂_pν` and Fisher
     /// information `I_pq = ½ tr(B_p B_q) + ∂_pνᵀ S⁻¹ ∂_qν` to the agent's sums.
-    fn score(&self, ag: &mut AgentParams, np: usize, m: usize) {
+    #[inline(always)]
+    fn score(&self, ag: &mut AgentParams, np: usize, m: impl Size) {
+        let m = m.get();
         let si = &self.si[..m * m];
         for p in 0..np {
             let sp = &self.sp[p][..m * m];
@@ -482,7 +520,9 @@ impl Work {
     }
 
     /// `x̂ += K ν`; `∂x̂ += ∂K ν + K ∂ν` for each of the `np` sensitivities.
-    fn update_means(&self, st: &mut [f64], n: usize, m: usize, np: usize) {
+    #[inline(always)]
+    fn update_means(&self, st: &mut [f64], n: impl Size, m: impl Size, np: usize) {
+        let (n, m) = (n.get(), m.get());
         let blen = n + n * n;
         for i in 0..n {
             let mut acc = 0.0;
@@ -505,7 +545,9 @@ impl Work {
 
     /// Joseph form on `cov` (n × n): `M ← (I − KH) M (I − KH)ᵀ (+ K R Kᵀ over the seen rows)`,
     /// symmetrised.
-    fn joseph(&mut self, cov: &mut [f64], n: usize, m: usize, add_r: bool) {
+    #[inline(always)]
+    fn joseph(&mut self, cov: &mut [f64], n: impl Size, m: impl Size, add_r: bool) {
+        let (n, m) = (n.get(), m.get());
         let t = &mut self.t[..n * n];
         // T = M − K H M, then M' = T − T Hᵀ Kᵀ.
         for i in 0..n {
@@ -578,8 +620,9 @@ pub(crate) struct Bank {
 }
 
 /// Row-major `out = a b` for `a` (r × k), `b` (k × c).
-#[inline]
-fn matmul(out: &mut [f64], a: &[f64], b: &[f64], r: usize, k: usize, c: usize) {
+#[inline(always)]
+fn matmul(out: &mut [f64], a: &[f64], b: &[f64], r: impl Size, k: impl Size, c: impl Size) {
+    let (r, k, c) = (r.get(), k.get(), c.get());
     for i in 0..r {
         for j in 0..c {
             let mut acc = 0.0;
@@ -592,7 +635,9 @@ fn matmul(out: &mut [f64], a: &[f64], b: &[f64], r: usize, k: usize, c: usize) {
 }
 
 /// Cholesky factor (lower, row-major) of the SPD `a` (m × m) into `l`; `false` if not PD.
-fn cholesky(a: &[f64], l: &mut [f64], m: usize) -> bool {
+#[inline(always)]
+fn cholesky(a: &[f64], l: &mut [f64], m: impl Size) -> bool {
+    let m = m.get();
     for i in 0..m {
         for j in 0..=i {
             let mut s = a[i * m + j];
@@ -617,7 +662,9 @@ fn cholesky(a: &[f64], l: &mut [f64], m: usize) -> bool {
 
 /// `S⁻¹` (m × m) from the Cholesky factor `l` of S: per column of the identity a forward and
 /// a backward substitution, in place in that column of `out`.
-fn inverse_from_cholesky(l: &[f64], out: &mut [f64], m: usize) {
+#[inline(always)]
+fn inverse_from_cholesky(l: &[f64], out: &mut [f64], m: impl Size) {
+    let m = m.get();
     for c in 0..m {
         for i in 0..m {
             let mut s = if i == c { 1.0 } else { 0.0 };
@@ -714,8 +761,22 @@ impl Bank {
     /// Prediction of block `b` in run `r`; `inc` (length ≤ n) is added to the first entries of
     /// the predicted mean (the known inputs' increment).
     pub(crate) fn predict(&mut self, b: usize, r: usize, inc: Option<&[f64]>) {
+        match self.blocks[b].n {
+            1 => self.predict_sized(b, r, inc, Const::<1>),
+            2 => self.predict_sized(b, r, inc, Const::<2>),
+            3 => self.predict_sized(b, r, inc, Const::<3>),
+            6 => self.predict_sized(b, r, inc, Const::<6>),
+            9 => self.predict_sized(b, r, inc, Const::<9>),
+            n => self.predict_sized(b, r, inc, n),
+        }
+    }
+
+    /// [`Self::predict`] with the block's size `n` (a [`Const`] where the loops should unroll).
+    #[inline(always)]
+    fn predict_sized(&mut self, b: usize, r: usize, inc: Option<&[f64]>, n: impl Size) {
         let blk = &self.blocks[b];
-        let n = blk.n;
+        let n = n.get();
+        debug_assert_eq!(n, blk.n);
         let cw = self.agents[blk.owner * self.runs + r].theta[0].exp();
         let o = self.base[b] + r * self.stride[b];
         let st = &mut self.data[o..o + self.stride[b]];
@@ -765,8 +826,31 @@ impl Bank {
         seen: Option<&[bool]>,
         obs: Obs<'_>,
     ) -> Result<(), ()> {
+        let a = (b, r, y, seen, obs);
+        match (self.blocks[b].n, self.blocks[b].m) {
+            (1, 1) => self.correct_sized(a, Const::<1>, Const::<1>),
+            (2, 2) => self.correct_sized(a, Const::<2>, Const::<2>),
+            (3, 3) => self.correct_sized(a, Const::<3>, Const::<3>),
+            (3, 1) => self.correct_sized(a, Const::<3>, Const::<1>),
+            (6, 2) => self.correct_sized(a, Const::<6>, Const::<2>),
+            (9, 3) => self.correct_sized(a, Const::<9>, Const::<3>),
+            (n, m) => self.correct_sized(a, n, m),
+        }
+    }
+
+    /// [`Self::correct`] with the block's sizes (a [`Const`] where the loops should unroll).
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    fn correct_sized(
+        &mut self,
+        (b, r, y, seen, obs): (usize, usize, &[f64], Option<&[bool]>, Obs<'_>),
+        n: impl Size,
+        m: impl Size,
+    ) -> Result<(), ()> {
         let blk = &self.blocks[b];
-        let (n, m) = (blk.n, blk.m);
+        debug_assert_eq!((n.get(), m.get()), (blk.n, blk.m));
+        let (sn, sm) = (n, m);
+        let (n, m) = (n.get(), m.get());
         let np = self.params_per_run;
         let owner = blk.owner * self.runs + r;
         let cv = self.agents[owner].theta[1].exp();
@@ -788,20 +872,20 @@ impl Bank {
             }
             Obs::Fixed(rt) => w.rr[..m * m].copy_from_slice(&rt[..m * m]),
         }
-        w.innovation(&st[..blen], y, n, m)?;
+        w.innovation(&st[..blen], y, sn, sm)?;
         for p in 0..np {
             let off = (p + 1) * blen;
-            w.sensitivity(p, &st[off..off + blen], n, m, direct && p == 1);
+            w.sensitivity(p, &st[off..off + blen], sn, sm, direct && p == 1);
         }
         if direct {
-            w.score(&mut self.agents[owner], np, m);
+            w.score(&mut self.agents[owner], np, sm);
         }
-        w.update_means(st, n, m, np);
+        w.update_means(st, sn, sm, np);
         for p in 0..=np {
             let off = p * blen + n;
             // R_M = R for Λ, ∂R = c_v R₁ for ∂Λ/∂θ_v of a direct measurement, 0 otherwise.
             let add_r = p == 0 || (direct && p == 2);
-            w.joseph(&mut st[off..off + n * n], n, m, add_r);
+            w.joseph(&mut st[off..off + n * n], sn, sm, add_r);
         }
         if st[..blen].iter().all(|v| v.is_finite()) {
             Ok(())
