@@ -91,8 +91,8 @@ use super::adaptive::Adapt;
 use super::ca::packed_index;
 use super::pcrb::Observation;
 use super::ral::{
-    consensus_stability, estimate_from_sums, InfeasibleRal, RalEstimate, RalOptions, RalSums,
-    RalVariant, DEFAULT_RANK_TOL,
+    consensus_stability, GramMemo, InfeasibleRal, RalEstimate, RalOptions, RalSums, RalVariant,
+    DEFAULT_RANK_TOL,
 };
 use super::rkf_ca::{
     adaptive_ca_cost, agent_quantity_ca_all, ca_cost, default_sigma_w, pcrb_runs, provides_ca_all,
@@ -466,6 +466,8 @@ pub struct Garkf<const D: usize> {
     theta: Vec<Mat<D>>,
     theta_prev: Vec<Mat<D>>,
     held: Vec<Option<Held<D>>>,
+    /// Per agent and run, what its RAL derived from its last Gram matrix.
+    memo: Vec<GramMemo<D>>,
     psi: Vec<f64>,
     has_psi: Vec<bool>,
     /// `geo_noise = "matched"`: per agent and run, the forgotten mean of
@@ -529,6 +531,7 @@ impl<const D: usize> Garkf<D> {
             theta: vec![Mat::<D>::zeros(); na],
             theta_prev: vec![Mat::<D>::zeros(); na],
             held: vec![None; na],
+            memo: vec![GramMemo::default(); na],
             psi: vec![0.0; na],
             has_psi: vec![false; na],
             disc: vec![f64::NAN; na],
@@ -613,7 +616,7 @@ impl<const D: usize> Garkf<D> {
                 if faults && !f.present(i, r) {
                     continue;
                 }
-                if let Ok(est) = estimate_from_sums(self.st.variant, sums, &self.opts) {
+                if let Ok(est) = self.memo[k].estimate(self.st.variant, sums, &self.opts) {
                     self.feasible[k] = true;
                     self.theta_ral[k] = est.theta;
                     self.held[k] = Some(Held {

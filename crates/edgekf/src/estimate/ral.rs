@@ -468,7 +468,73 @@ pub fn estimate_from_sums<const D: usize>(
     sums: &RalSums<D>,
     opts: &RalOptions,
 ) -> Result<RalEstimate<D>, RalError> {
-    feasibility_from_gram(variant, &sums.gram, sums.neighbours, opts)?;
+    let facts = gram_facts(variant, &sums.gram, sums.neighbours, opts)?;
+    Ok(estimate_with_facts(variant, sums, opts, facts))
+}
+
+/// What [`estimate_from_sums`] derives from the Gram matrix alone: feasibility (Def. 2,
+/// Table 2) and, for the general RAL, `A⁻¹`.
+fn gram_facts<const D: usize>(
+    variant: RalVariant,
+    a: &Matrix<D>,
+    neighbours: usize,
+    opts: &RalOptions,
+) -> Result<Option<Matrix<D>>, RalError> {
+    feasibility_from_gram(variant, a, neighbours, opts)?;
+    if variant != RalVariant::General {
+        return Ok(None);
+    }
+    inverse_spd_small(a)
+        .map(Some)
+        .ok_or(RalError::RankDeficient {
+            variant,
+            rank: D - 1,
+            need: D,
+        })
+}
+
+/// [`estimate_from_sums`] remembering what it derived from the last Gram matrix it saw: the
+/// Gram matrix depends on the configuration and on which neighbours were observed only, so
+/// from one step to the next it is mostly the same, bit for bit, and its eigenvalues (the
+/// rank test) and inverse are taken from the memo — the same values, so the same bits.
+#[derive(Debug, Clone, Default)]
+pub struct GramMemo<const D: usize> {
+    key: Option<(RalVariant, usize, [u64; 9])>,
+    facts: Option<Result<Option<Matrix<D>>, RalError>>,
+}
+
+impl<const D: usize> GramMemo<D> {
+    /// [`estimate_from_sums`] through the memo (`opts` must be the same at every call).
+    ///
+    /// # Errors
+    /// As [`estimate_from_sums`].
+    pub fn estimate(
+        &mut self,
+        variant: RalVariant,
+        sums: &RalSums<D>,
+        opts: &RalOptions,
+    ) -> Result<RalEstimate<D>, RalError> {
+        let mut bits = [0u64; 9];
+        for (b, v) in bits.iter_mut().zip(sums.gram.iter()) {
+            *b = v.to_bits();
+        }
+        let key = Some((variant, sums.neighbours, bits));
+        if self.key != key || self.facts.is_none() {
+            self.facts = Some(gram_facts(variant, &sums.gram, sums.neighbours, opts));
+            self.key = key;
+        }
+        let facts = self.facts.clone().expect("just set")?;
+        Ok(estimate_with_facts(variant, sums, opts, facts))
+    }
+}
+
+/// The estimate from the sums once the Gram matrix's facts are known.
+fn estimate_with_facts<const D: usize>(
+    variant: RalVariant,
+    sums: &RalSums<D>,
+    opts: &RalOptions,
+    a_inv: Option<Matrix<D>>,
+) -> RalEstimate<D> {
     let id = Matrix::<D>::identity();
     let mut est = RalEstimate {
         variant,
@@ -483,11 +549,7 @@ pub fn estimate_from_sums<const D: usize>(
     match variant {
         RalVariant::Translation => {}
         RalVariant::General => {
-            let a_inv = inverse_spd_small(a).ok_or(RalError::RankDeficient {
-                variant,
-                rank: D - 1,
-                need: D,
-            })?;
+            let a_inv = a_inv.expect("the general RAL's facts hold A⁻¹");
             est.theta = m * a_inv;
             est.gram_inv = a_inv;
         }
@@ -519,7 +581,7 @@ pub fn estimate_from_sums<const D: usize>(
             est.scale = s;
         }
     }
-    Ok(est)
+    est
 }
 
 /// Inverse of a symmetric positive definite D × D matrix: closed form for D ≤ 2 (the general
@@ -939,6 +1001,51 @@ mod tests {
 
     fn paper_r() -> Matrix<2> {
         Matrix2::new(0.01, 0.003, 0.003, 0.01)
+    }
+
+    /// The memo gives what `estimate_from_sums` gives, bit for bit, whether the Gram matrix
+    /// repeats, changes, or stops being feasible (too few neighbours, collinear ones).
+    #[test]
+    fn gram_memo_gives_the_direct_estimates() {
+        let mut g = rng(11);
+        let opts = RalOptions::default();
+        for variant in [
+            RalVariant::General,
+            RalVariant::Rotation,
+            RalVariant::Similarity,
+            RalVariant::Scaling,
+            RalVariant::Translation,
+        ] {
+            let mut memo = GramMemo::<3>::default();
+            let pool: Vec<Vector<3>> = (0..6).map(|_| random_vec::<3>(&mut g)).collect();
+            let line = [pool[0], pool[0] * 2.0, pool[0] * -0.5];
+            for step in 0..40 {
+                // Mostly the same neighbours (the memo's case), sometimes others or a line.
+                let h: Vec<Vector<3>> = match step % 7 {
+                    3 => pool[..2].to_vec(),
+                    5 => line.to_vec(),
+                    6 => pool[1..].to_vec(),
+                    _ => pool.clone(),
+                };
+                let y: Vec<Vector<3>> = h
+                    .iter()
+                    .map(|p| p + random_vec::<3>(&mut g) * 0.01)
+                    .collect();
+                let sums = RalSums {
+                    gram: gram(&h),
+                    cross: cross(&y, &h),
+                    gram_y: Matrix::<3>::zeros(),
+                    neighbours: h.len(),
+                };
+                let direct = estimate_from_sums(variant, &sums, &opts);
+                let memo_est = memo.estimate(variant, &sums, &opts);
+                assert_eq!(
+                    format!("{direct:?}"),
+                    format!("{memo_est:?}"),
+                    "{variant:?} step {step}"
+                );
+            }
+        }
     }
 
     fn random_vec<const D: usize>(rng: &mut impl Rng) -> Vector<D> {
