@@ -176,22 +176,10 @@ pub fn batch_gemv_acc(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize
         }
         return;
     }
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { gemv_acc_runs_avx2(k, n, v, x, runs) };
-            return;
-        }
-    }
-    gemv_acc_runs(k, n, v, x, runs);
-}
-
-/// [`gemv_acc_runs`] compiled for AVX2 (no fused multiply–add: the bits of the portable code).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn gemv_acc_runs_avx2(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize) {
-    gemv_acc_runs(k, n, v, x, runs);
+    with_avx2(
+        #[inline(always)]
+        || gemv_acc_runs(k, n, v, x, runs),
+    );
 }
 
 /// The batched body of [`batch_gemv_acc`]: each row's sums for [`RUN_BLOCK`] runs at a time kept

@@ -826,26 +826,29 @@ impl Bank {
         seen: Option<&[bool]>,
         obs: Obs<'_>,
     ) -> Result<(), ()> {
-        let a = (b, r, y, seen, obs);
-        match (self.blocks[b].n, self.blocks[b].m) {
-            (1, 1) => self.correct_sized(a, Const::<1>, Const::<1>),
-            (2, 2) => self.correct_sized(a, Const::<2>, Const::<2>),
-            (3, 3) => self.correct_sized(a, Const::<3>, Const::<3>),
-            (3, 1) => self.correct_sized(a, Const::<3>, Const::<1>),
-            (6, 2) => self.correct_sized(a, Const::<6>, Const::<2>),
-            (9, 3) => self.correct_sized(a, Const::<9>, Const::<3>),
-            (n, m) => self.correct_sized(a, n, m),
+        let (n, m) = (self.blocks[b].n, self.blocks[b].m);
+        match (n, m) {
+            (1, 1) => self.correct_sized(b, r, y, seen, obs, (Const::<1>, Const::<1>)),
+            (2, 2) => self.correct_sized(b, r, y, seen, obs, (Const::<2>, Const::<2>)),
+            (3, 3) => self.correct_sized(b, r, y, seen, obs, (Const::<3>, Const::<3>)),
+            (3, 1) => self.correct_sized(b, r, y, seen, obs, (Const::<3>, Const::<1>)),
+            (6, 2) => self.correct_sized(b, r, y, seen, obs, (Const::<6>, Const::<2>)),
+            (9, 3) => self.correct_sized(b, r, y, seen, obs, (Const::<9>, Const::<3>)),
+            _ => self.correct_sized(b, r, y, seen, obs, (n, m)),
         }
     }
 
-    /// [`Self::correct`] with the block's sizes (a [`Const`] where the loops should unroll).
+    /// [`Self::correct`] with the block's sizes `(n, m)` (a [`Const`] where the loops should
+    /// unroll).
     #[inline(always)]
-    #[allow(clippy::type_complexity)]
     fn correct_sized(
         &mut self,
-        (b, r, y, seen, obs): (usize, usize, &[f64], Option<&[bool]>, Obs<'_>),
-        n: impl Size,
-        m: impl Size,
+        b: usize,
+        r: usize,
+        y: &[f64],
+        seen: Option<&[bool]>,
+        obs: Obs<'_>,
+        (n, m): (impl Size, impl Size),
     ) -> Result<(), ()> {
         let blk = &self.blocks[b];
         debug_assert_eq!((n.get(), m.get()), (blk.n, blk.m));

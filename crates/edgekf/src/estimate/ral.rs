@@ -479,7 +479,7 @@ fn gram_facts<const D: usize>(
     a: &Matrix<D>,
     neighbours: usize,
     opts: &RalOptions,
-) -> Result<Option<Matrix<D>>, RalError> {
+) -> GramFacts<D> {
     feasibility_from_gram(variant, a, neighbours, opts)?;
     if variant != RalVariant::General {
         return Ok(None);
@@ -499,9 +499,12 @@ fn gram_facts<const D: usize>(
 /// rank test) and inverse are taken from the memo — the same values, so the same bits.
 #[derive(Debug, Clone, Default)]
 pub struct GramMemo<const D: usize> {
-    key: Option<(RalVariant, usize, [u64; 9])>,
-    facts: Option<Result<Option<Matrix<D>>, RalError>>,
+    /// The last variant, neighbour count and Gram matrix seen, and what was derived from them.
+    last: Option<(RalVariant, usize, Matrix<D>, GramFacts<D>)>,
 }
+
+/// What [`gram_facts`] derives: `A⁻¹` for the general RAL, or why the RAL is infeasible.
+type GramFacts<const D: usize> = Result<Option<Matrix<D>>, RalError>;
 
 impl<const D: usize> GramMemo<D> {
     /// [`estimate_from_sums`] through the memo (`opts` must be the same at every call).
@@ -514,17 +517,19 @@ impl<const D: usize> GramMemo<D> {
         sums: &RalSums<D>,
         opts: &RalOptions,
     ) -> Result<RalEstimate<D>, RalError> {
-        let mut bits = [0u64; 9];
-        for (b, v) in bits.iter_mut().zip(sums.gram.iter()) {
-            *b = v.to_bits();
+        let same = |(v, n, a, _): &(RalVariant, usize, Matrix<D>, GramFacts<D>)| {
+            *v == variant
+                && *n == sums.neighbours
+                && a.iter()
+                    .zip(sums.gram.iter())
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        if !self.last.as_ref().is_some_and(same) {
+            let facts = gram_facts(variant, &sums.gram, sums.neighbours, opts);
+            self.last = Some((variant, sums.neighbours, sums.gram, facts));
         }
-        let key = Some((variant, sums.neighbours, bits));
-        if self.key != key || self.facts.is_none() {
-            self.facts = Some(gram_facts(variant, &sums.gram, sums.neighbours, opts));
-            self.key = key;
-        }
-        let facts = self.facts.clone().expect("just set")?;
-        Ok(estimate_with_facts(variant, sums, opts, facts))
+        let (.., facts) = self.last.as_ref().expect("just set");
+        Ok(estimate_with_facts(variant, sums, opts, facts.clone()?))
     }
 }
 

@@ -742,28 +742,10 @@ impl<const D: usize> Estimator for Rkf<D> {
 /// an edge whose four gains are non-zero takes a loop without branches, so it vectorises).
 /// Compiled for AVX2 when the CPU has it (no fused multiply–add: the bits of the portable code).
 fn means2(group: &[usize], gains: &[f64], x: &mut [f64], y: &[f64], du: &[f64], r: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { means2_avx2(group, gains, x, y, du, r) };
-            return;
-        }
-    }
-    means2_body(group, gains, x, y, du, r);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn means2_avx2(
-    group: &[usize],
-    gains: &[f64],
-    x: &mut [f64],
-    y: &[f64],
-    du: &[f64],
-    r: usize,
-) {
-    means2_body(group, gains, x, y, du, r);
+    crate::linalg::with_avx2(
+        #[inline(always)]
+        || means2_body(group, gains, x, y, du, r),
+    );
 }
 
 #[inline(always)]

@@ -4,7 +4,7 @@
 //! this is not an approximation. One noise realisation per T value per step, shared by all the
 //! estimators that use that T (common random numbers).
 
-use crate::linalg::{batch_gemv, psd_factor, to_row_major};
+use crate::linalg::{batch_gemv, psd_factor, to_row_major, with_avx2};
 use nalgebra::DMatrix;
 
 /// Measurement-mean noise for each distinct T.
@@ -138,16 +138,11 @@ impl EdgeStates<'_> {
         runs: usize,
     ) {
         let inputs = Inputs { z, u, dt, runs };
-        #[cfg(target_arch = "x86_64")]
-        {
-            if d == 2 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2 (checked just above).
-                unsafe { self.form2_avx2(edges, &inputs, noise) };
-                return;
-            }
-        }
         if d == 2 {
-            self.form2(edges, &inputs, noise);
+            with_avx2(
+                #[inline(always)]
+                || self.form2(edges, &inputs, noise),
+            );
             return;
         }
         let MeasNoise::Mean(vbar) = noise else {
@@ -170,17 +165,6 @@ impl EdgeStates<'_> {
                 }
             }
         }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn form2_avx2(
-        &mut self,
-        edges: &[(usize, usize)],
-        inp: &Inputs<'_>,
-        noise: MeasNoise<'_>,
-    ) {
-        self.form2(edges, inp, noise);
     }
 
     /// D = 2: both coordinates of an edge in one pass over the runs.
