@@ -270,6 +270,31 @@ pub fn eigenvalues_general(m: &DMatrix<f64>) -> Option<Vec<(f64, f64)>> {
     )
 }
 
+/// A size known at compile time ([`Const`]) or at run time (`usize`): small kernels take their
+/// dimensions as `impl Size`, so the common blocks get their loops unrolled — the same
+/// operations in the same order, so the same bits as at the run-time size.
+pub(crate) trait Size: Copy {
+    fn get(self) -> usize;
+}
+
+/// A compile-time size.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Const<const N: usize>;
+
+impl<const N: usize> Size for Const<N> {
+    #[inline(always)]
+    fn get(self) -> usize {
+        N
+    }
+}
+
+impl Size for usize {
+    #[inline(always)]
+    fn get(self) -> usize {
+        self
+    }
+}
+
 /// Runs `f` compiled for AVX2 when the CPU has it: `f`, an `#[inline(always)]` closure, is
 /// inlined into an AVX2 function, so its loops over the runs vectorise 4 wide (no fused
 /// multiply–add: the bits are those of the portable code).

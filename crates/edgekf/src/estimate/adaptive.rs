@@ -59,6 +59,7 @@
 //! approximations", IEEE TAC 54(3), 2009; A. P. Sage and G. W. Husa, "Adaptive filtering with
 //! unknown prior statistics", JACC 1969.
 
+use crate::linalg::{Const, Size};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// The default memory of the forgetting factor, in seconds: `λ = 1 − Δt / DEFAULT_MEMORY`.
@@ -329,32 +330,6 @@ struct AgentParams {
     info: [f64; 3],
     g: [f64; 2],
     h: [f64; 3],
-}
-
-/// A size known at compile time ([`Const`]) or at run time (`usize`): the kernels below take
-/// their dimensions as `impl Size`, so the common blocks (the CA model's 3D × 3D with D measured
-/// rows, the RKF's D × D) get loops unrolled at their size — the same operations in the same
-/// order, so the same bits as the run-time size.
-trait Size: Copy {
-    fn get(self) -> usize;
-}
-
-/// A compile-time size.
-#[derive(Debug, Clone, Copy)]
-struct Const<const N: usize>;
-
-impl<const N: usize> Size for Const<N> {
-    #[inline(always)]
-    fn get(self) -> usize {
-        N
-    }
-}
-
-impl Size for usize {
-    #[inline(always)]
-    fn get(self) -> usize {
-        self
-    }
 }
 
 /// Scratch of one correction, sized once for the largest block.

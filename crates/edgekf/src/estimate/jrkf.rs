@@ -39,6 +39,7 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use super::adaptive::{adaptive_metrics, Adaptation, Assumed};
+use super::joseph_lanes::{Pack, Work, LANES};
 use super::rkf::NoiseOptions;
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
@@ -353,6 +354,25 @@ fn agent_blocks(
     (blocks, max_n)
 }
 
+/// The shared recursions (`blocks`, with edges) in packs of four of one block size, in order.
+fn packs_of(blocks: &[Block], d: usize) -> Vec<Pack> {
+    let mut sizes: Vec<usize> = blocks.iter().map(|b| b.n).filter(|&n| n > 0).collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    let mut packs = Vec::new();
+    for n in sizes {
+        let members: Vec<usize> = (0..blocks.len()).filter(|&g| blocks[g].n == n).collect();
+        for chunk in members.chunks(LANES) {
+            let m: Vec<_> = chunk
+                .iter()
+                .map(|&g| (g, [&blocks[g].q, &blocks[g].w, &blocks[g].sigma]))
+                .collect();
+            packs.push(Pack::new(&m, d));
+        }
+    }
+    packs
+}
+
 /// The joint filter of every agent.
 #[derive(Debug, Clone)]
 pub struct Jrkf {
@@ -368,6 +388,9 @@ pub struct Jrkf {
     extra: Option<DMatrix<f64>>,
     /// Shared: `blocks[group[i]]`; per run: `blocks[i * runs + r]`.
     blocks: Vec<Block>,
+    /// Shared (inputs not all lost): the groups' recursions four at a time, by block size.
+    packs: Vec<Pack>,
+    work: Work,
     /// Shared: the group of each agent and one agent of each group.
     group: Vec<usize>,
     reps: Vec<usize>,
@@ -419,13 +442,18 @@ impl Jrkf {
             ((0..proto.len()).collect(), (0..proto.len()).collect())
         };
         let agent_rows: Vec<(usize, usize)> = proto.iter().map(|b| (b.row, b.n)).collect();
-        let blocks = if shared {
+        let blocks: Vec<Block> = if shared {
             agent_group.1.iter().map(|&i| proto[i].clone()).collect()
         } else {
             proto
                 .iter()
                 .flat_map(|b| std::iter::repeat_n(b.clone(), runs))
                 .collect()
+        };
+        let packs = if shared && p_fail.is_none_or(|p| p < 1.0) {
+            packs_of(&blocks, d)
+        } else {
+            Vec::new()
         };
         let ar = p_fail.and(m.ar());
         let extra = ar.map(|ar| {
@@ -448,6 +476,8 @@ impl Jrkf {
             coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
             extra,
             blocks,
+            packs,
+            work: Work::new(max_n),
             group: agent_group.0,
             reps: agent_group.1,
             agent_rows,
@@ -480,24 +510,63 @@ impl Jrkf {
         }
     }
 
-    fn step_shared(&mut self, s: &Step<'_>) {
-        let all_lost = self.p_fail.is_some_and(|p| p >= 1.0);
-        let r = self.runs;
+    /// The shared recursions' step one at a time (`jrkf-ar` with every input lost adds the AR
+    /// prediction's noise); the first group whose innovation covariance is not positive
+    /// definite, if any.
+    fn step_blocks(&mut self, all_lost: bool) -> Option<usize> {
         let d = self.dim;
-        let mut failed = None;
         for (g, b) in self.blocks.iter_mut().enumerate() {
             // An agent without edges (the others of one agent's model) has nothing to filter.
             if b.n > 0 && (all_lost || !b.frozen) {
                 let ne = b.n / d.max(1);
                 self.lost[..ne].fill(all_lost);
                 if !b.covariance_step(&self.lost[..ne], &[], self.extra.as_ref()) {
-                    failed = Some(self.reps[g]);
-                    break;
+                    return Some(g);
                 }
             }
         }
-        if let Some(i) = failed {
-            self.fail(i);
+        None
+    }
+
+    /// The shared recursions' step, four lanes at a time; the first group (in order) whose
+    /// innovation covariance is not positive definite, if any.
+    fn step_packs(&mut self) -> Option<usize> {
+        let mut failed: Option<usize> = None;
+        for p in &mut self.packs {
+            let members = p.members();
+            let frozen: [bool; LANES] =
+                std::array::from_fn(|l| members.get(l).is_none_or(|&g| self.blocks[g].frozen));
+            if frozen.iter().all(|f| *f) {
+                continue;
+            }
+            let out = p.step(&mut self.work, frozen);
+            for (l, &g) in p.members().iter().enumerate() {
+                if frozen[l] {
+                    continue;
+                }
+                if !out.ok[l] {
+                    failed = Some(failed.map_or(g, |f| f.min(g)));
+                    continue;
+                }
+                let b = &mut self.blocks[g];
+                p.read(&self.work, l, &mut b.sigma, &mut b.gain);
+                b.frozen = out.converged[l];
+            }
+        }
+        failed
+    }
+
+    fn step_shared(&mut self, s: &Step<'_>) {
+        let all_lost = self.p_fail.is_some_and(|p| p >= 1.0);
+        let r = self.runs;
+        let d = self.dim;
+        let failed = if self.packs.is_empty() {
+            self.step_blocks(all_lost)
+        } else {
+            self.step_packs()
+        };
+        if let Some(g) = failed {
+            self.fail(self.reps[g]);
             return;
         }
         for (i, range) in self.agent_edges.iter().enumerate() {
@@ -667,5 +736,109 @@ impl Estimator for Jrkf {
             }
         }
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn spd(n: usize, scale: f64, rng: &mut impl Rng) -> DMatrix<f64> {
+        let g = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+        (&g * g.transpose() + DMatrix::identity(n, n) * 0.1) * scale
+    }
+
+    /// A block of size `n` with random `Q`, `W` and `Σ_0` (symmetric positive definite), `W`
+    /// block diagonal with `wd × wd` blocks.
+    fn random_block(n: usize, wd: usize, rng: &mut impl Rng) -> Block {
+        let z = DMatrix::zeros(n, n);
+        let mut w = DMatrix::zeros(n, n);
+        for a in (0..n).step_by(wd) {
+            w.view_mut((a, a), (wd, wd)).copy_from(&spd(wd, 0.5, rng));
+        }
+        Block {
+            row: 0,
+            n,
+            q: spd(n, 1e-3, rng),
+            w,
+            sigma: spd(n, 2.0, rng),
+            prior: z.clone(),
+            s: z.clone(),
+            kt: z.clone(),
+            at: z.clone(),
+            tmp: z,
+            gain: vec![0.0; n * n],
+            frozen: false,
+        }
+    }
+
+    fn bits(m: &[f64]) -> Vec<u64> {
+        m.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// The four-lane step gives every lane the scalar step's bits (posterior, gain, converged),
+    /// for a compile-time size (12) and run-time ones (with and without eight-accumulator dot
+    /// products in the back substitution), partial packs, frozen lanes and a lane whose
+    /// innovation covariance is not positive definite.
+    #[test]
+    fn lanes_give_the_bits_of_the_scalar_step() {
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        let mut converged = 0;
+        // (n, D, W's block size): W = bdiag(R_ij / T), and one dense W.
+        for (n, d, wd) in [
+            (1, 1, 1),
+            (2, 2, 2),
+            (6, 2, 2),
+            (6, 2, 6),
+            (9, 3, 3),
+            (12, 2, 2),
+            (13, 1, 1),
+            (20, 2, 2),
+        ] {
+            for used in 1..=LANES {
+                let mut blocks: Vec<Block> =
+                    (0..used).map(|_| random_block(n, wd, &mut rng)).collect();
+                // The last lane of a full pack breaks down (its W is negative definite).
+                let broken = (used == LANES).then_some(used - 1);
+                if let Some(g) = broken {
+                    blocks[g].w = -DMatrix::identity(n, n) * 1e6;
+                }
+                // Lane 0 converges to rounding level within the steps (Q ≫ W).
+                blocks[0].q *= 1e3;
+                let members: Vec<_> = blocks
+                    .iter()
+                    .enumerate()
+                    .map(|(g, b)| (g, [&b.q, &b.w, &b.sigma]))
+                    .collect();
+                let mut pack = Pack::new(&members, d);
+                let mut work = Work::new(n);
+                for step in 0..40 {
+                    let frozen: [bool; LANES] =
+                        std::array::from_fn(|l| l >= used || (l == 1 && (12..20).contains(&step)));
+                    let out = pack.step(&mut work, frozen);
+                    for (l, b) in blocks.iter_mut().enumerate() {
+                        if frozen[l] || broken.is_some_and(|g| g == l && step > 0) {
+                            continue;
+                        }
+                        let ok = b.covariance_step(&[], &[], None);
+                        assert_eq!(out.ok[l], ok, "n {n}, d {d}, lane {l}, step {step}");
+                        if !ok {
+                            continue;
+                        }
+                        let (mut sigma, mut gain) = (DMatrix::zeros(n, n), vec![0.0; n * n]);
+                        pack.read(&work, l, &mut sigma, &mut gain);
+                        assert_eq!(bits(sigma.as_slice()), bits(b.sigma.as_slice()), "n {n}");
+                        assert_eq!(bits(&gain), bits(&b.gain), "n {n}, lane {l}");
+                        assert_eq!(out.converged[l], b.frozen, "n {n}, lane {l}");
+                        converged += usize::from(b.frozen);
+                    }
+                }
+            }
+        }
+        assert!(
+            converged > 0,
+            "no recursion converged: the test misses that path"
+        );
     }
 }

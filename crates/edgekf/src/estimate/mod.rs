@@ -57,6 +57,7 @@ pub mod batch_aos;
 pub mod ca;
 pub mod crkf;
 pub mod garkf;
+mod joseph_lanes;
 pub mod jrkf;
 pub mod mle;
 pub mod mmse;
