@@ -18,7 +18,7 @@ use rand::Rng;
 
 use crate::control::maneuver::{target_positions, Trajectory};
 use crate::estimate::Target;
-use crate::linalg::{batch_gemv, psd_factor, to_row_major};
+use crate::linalg::{batch_gemv, psd_factor, to_row_major, with_avx2};
 use crate::rng::Streams;
 
 /// Seed of run `r`'s stream (SplitMix64 finaliser of the pair).
@@ -39,7 +39,8 @@ pub(crate) enum Factor {
     Zero,
     /// Diagonal Σ: the standard deviations.
     Diagonal(Vec<f64>),
-    /// Σ = A ⊗ I_D: `chol(A)` row-major (n × n), applied per coordinate.
+    /// Σ = A ⊗ I_D: `chol(A)` (n × n) in panels of [`KRON_ROWS`] rows ([`panels`]), applied
+    /// per coordinate.
     Kron { a: Vec<f64>, n: usize, d: usize },
     /// Dense, row-major.
     Dense { c: Vec<f64>, n: usize },
@@ -71,10 +72,15 @@ impl Factor {
             });
         if kron {
             let a = DMatrix::from_fn(n, n, |i, j| cov[(i * d, j * d)]);
-            if let Some(f) = psd_factor(&a) {
-                let mut rm = vec![0.0; n * n];
-                to_row_major(&f, &mut rm);
-                return Factor::Kron { a: rm, n, d };
+            // The panels' sums stop at the diagonal: a lower-triangular (Cholesky) factor only
+            // (a singular A's eigenvector factor goes the dense way).
+            let lower = |f: &DMatrix<f64>| (0..n).all(|i| (i + 1..n).all(|j| f[(i, j)] == 0.0));
+            if let Some(f) = psd_factor(&a).filter(lower) {
+                return Factor::Kron {
+                    a: panels(&f),
+                    n,
+                    d,
+                };
             }
         }
         let f = psd_factor(cov).expect("checked PSD");
@@ -128,10 +134,11 @@ fn kron_wide(a: &[f64], n: usize, w: usize, xi: &[f64], out: &mut [f64]) {
     while i < n {
         let rows = KRON_ROWS.min(n - i);
         let block = &mut out[i * w..(i + rows) * w];
+        let panel = &a[i * n..][..KRON_ROWS * n];
         for j in 0..i + rows {
             let x = &xi[j * w..(j + 1) * w];
             for (r, o) in block.chunks_exact_mut(w).enumerate() {
-                let c = a[(i + r) * n + j];
+                let c = panel[j * KRON_ROWS + r];
                 for (o, x) in o.iter_mut().zip(x) {
                     *o += c * x;
                 }
@@ -141,28 +148,52 @@ fn kron_wide(a: &[f64], n: usize, w: usize, xi: &[f64], out: &mut [f64]) {
     }
 }
 
-/// [`kron_wide`] for `w = W` values per agent, the 4·W sums in registers.
+/// [`kron_wide`] for `w = W` values per agent, the 4·W sums in registers: for each value, one
+/// 4-wide product of the panel's column `j` (four agents' coefficients, contiguous) — AVX2
+/// without fused multiply–adds, so the bits of one sum at a time.
 fn kron_small<const W: usize>(a: &[f64], n: usize, xi: &[f64], out: &mut [f64]) {
-    let mut i = 0;
-    while i < n {
-        let rows = KRON_ROWS.min(n - i);
-        let mut acc = [[0.0f64; W]; KRON_ROWS];
-        let cols = i + rows;
-        let row = |r: usize| &a[(i + r.min(rows - 1)) * n..][..cols];
-        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
-        for (j, x) in xi[..cols * W].chunks_exact(W).enumerate() {
-            let c = [r0[j], r1[j], r2[j], r3[j]];
-            for (acc, c) in acc.iter_mut().zip(c) {
-                for (s, x) in acc.iter_mut().zip(x) {
-                    *s += c * x;
+    with_avx2(
+        #[inline(always)]
+        || {
+            let mut i = 0;
+            while i < n {
+                let rows = KRON_ROWS.min(n - i);
+                let cols = i + rows;
+                let panel = &a[i * n..][..KRON_ROWS * cols];
+                let mut acc = [[0.0f64; KRON_ROWS]; W];
+                for (c, x) in panel
+                    .chunks_exact(KRON_ROWS)
+                    .zip(xi[..cols * W].chunks_exact(W))
+                {
+                    for (acc, x) in acc.iter_mut().zip(x) {
+                        for (s, c) in acc.iter_mut().zip(c) {
+                            *s += c * x;
+                        }
+                    }
                 }
+                for r in 0..rows {
+                    for (v, acc) in acc.iter().enumerate() {
+                        out[(i + r) * W + v] = acc[r];
+                    }
+                }
+                i += rows;
             }
+        },
+    );
+}
+
+/// A lower-triangular `f` (n × n) in panels of [`KRON_ROWS`] rows: panel `p` holds rows
+/// `4p..4p+4` column after column (`a[p·4n + 4j + r] = f[4p + r, j]`; rows past `n` are zero),
+/// so four agents' coefficients of one column are one contiguous load.
+fn panels(f: &DMatrix<f64>) -> Vec<f64> {
+    let n = f.nrows();
+    let mut a = vec![0.0; n.div_ceil(KRON_ROWS) * KRON_ROWS * n];
+    for i in 0..n {
+        for j in 0..n {
+            a[(i / KRON_ROWS) * KRON_ROWS * n + j * KRON_ROWS + i % KRON_ROWS] = f[(i, j)];
         }
-        for (r, acc) in acc.iter().take(rows).enumerate() {
-            out[(i + r) * W..(i + r + 1) * W].copy_from_slice(acc);
-        }
-        i += rows;
     }
+    a
 }
 
 /// What the world draws every step, for a chunk of runs (runs innermost).
@@ -339,7 +370,8 @@ mod tests {
     use crate::rng::Stream;
 
     /// The register path (2 or 3 values per agent) gives the bits of the general one, and both
-    /// equal the plain sum over j ≤ i, for a number of agents that is not a multiple of four.
+    /// (reading the factor in panels) equal the plain sum over j ≤ i of the row-major factor,
+    /// for a number of agents that is not a multiple of four.
     #[test]
     fn kron_paths_agree_bit_for_bit() {
         let n = 11;
@@ -347,11 +379,12 @@ mod tests {
         let a: Vec<f64> = (0..n * n)
             .map(|k| if k % n <= k / n { st.normal() } else { 0.0 })
             .collect();
+        let p = panels(&DMatrix::from_row_slice(n, n, &a));
         for w in [2, 3] {
             let xi: Vec<f64> = (0..n * w).map(|_| st.normal()).collect();
             let (mut small, mut wide) = (vec![0.0; n * w], vec![0.0; n * w]);
-            kron_apply(&a, n, w, &xi, &mut small);
-            kron_wide(&a, n, w, &xi, &mut wide);
+            kron_apply(&p, n, w, &xi, &mut small);
+            kron_wide(&p, n, w, &xi, &mut wide);
             for i in 0..n {
                 for e in 0..w {
                     let mut s = 0.0;
