@@ -171,11 +171,17 @@ impl Configured for Config {
             .sum();
         let md = m.num_edges() as f64 * d;
         if self.shared_gain(m) {
+            // Without every input lost, the shared recursions step `LANES` at a time.
+            let lanes = if self.ar.is_some_and(|p| p >= 1.0) {
+                1.0
+            } else {
+                LANES as f64
+            };
             Cost {
                 bytes_per_run: md * 8.0 * 2.0,
                 bytes_shared: squares * 8.0 * 8.0,
                 flops_per_run_step: 2.0 * squares / m.agents().max(1) as f64 + 2.0 * md,
-                flops_shared_step: 6.0 * cubes,
+                flops_shared_step: 6.0 * cubes / lanes,
             }
         } else {
             Cost {
