@@ -236,7 +236,7 @@ fn cholesky(size: impl Size, s: &mut [Lane], ok: &mut [bool; LANES]) {
         let v = s[at];
         for l in 0..LANES {
             // nalgebra refuses a zero diagonal and one without a square root (< 0, NaN).
-            ok[l] &= v[l] != 0.0 && v[l] >= 0.0;
+            ok[l] &= v[l] > 0.0;
         }
         let den = lanes(|l| v[l].sqrt());
         s[at] = den;
