@@ -348,7 +348,15 @@ impl Streams {
         #[allow(unused_mut)]
         let mut alone = 0;
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+        {
+            alone = runs / LANES * LANES;
+            for r0 in (0..alone).step_by(LANES) {
+                // SAFETY: AVX-512 F and VL (so AVX2) are present (checked above).
+                unsafe { avx512::fill(self, buf, r0) };
+            }
+        } else if std::arch::is_x86_feature_detected!("avx2") {
             alone = runs / LANES * LANES;
             for r0 in (0..alone).step_by(LANES) {
                 // SAFETY: AVX2 is present (checked above).
@@ -366,25 +374,24 @@ impl Streams {
     }
 }
 
-/// The fast path of four runs in AVX2 registers.
+/// The fast path of four runs in 256-bit registers, compiled for the CPU features `$features`
+/// with the lane rotation `$rotl` (the same integer results either way).
+macro_rules! fast_path {
+    ($(#[$doc:meta])* $name:ident, $features:literal, $rotl:item) => {
+$(#[$doc])*
 #[cfg(target_arch = "x86_64")]
-mod avx2 {
+mod $name {
     use std::arch::x86_64::*;
 
     use super::{candidate, finish, tables, Streams, LANES, LAYERS, LAYER_MASK};
 
-    /// Rotates every lane left by `L` (`R = 64 − L`).
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    fn rotl<const L: i32, const R: i32>(x: __m256i) -> __m256i {
-        _mm256_or_si256(_mm256_slli_epi64::<L>(x), _mm256_srli_epi64::<R>(x))
-    }
+    $rotl
 
     /// Rows drawn between two rounds of finishing the lanes that missed the fast path.
     const CHUNK: usize = 64;
 
     /// Fills runs `r0..r0 + 4` of `buf` (`rows × runs`, runs innermost).
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = $features)]
     pub(super) fn fill(st: &mut Streams, buf: &mut [f64], r0: usize) {
         let runs = st.len();
         let rows = buf.len() / runs;
@@ -429,7 +436,7 @@ mod avx2 {
     /// are noted in `missed` (how many is returned). No call in the loop: the four states stay
     /// in registers.
     #[inline]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = $features)]
     fn chunk(
         s: &mut [__m256i; 4],
         buf: &mut [f64],
@@ -494,6 +501,33 @@ mod avx2 {
         n
     }
 }
+    };
+}
+
+fast_path!(
+    /// AVX2: a rotation is two shifts and an or.
+    avx2,
+    "avx2",
+    /// Rotates every lane left by `L` (`R = 64 − L`).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn rotl<const L: i32, const R: i32>(x: __m256i) -> __m256i {
+        _mm256_or_si256(_mm256_slli_epi64::<L>(x), _mm256_srli_epi64::<R>(x))
+    }
+);
+
+fast_path!(
+    /// AVX-512 VL on 256-bit registers: one `vprolq` per rotation (xoshiro256++ rotates twice
+    /// per draw).
+    avx512,
+    "avx2,avx512f,avx512vl",
+    /// Rotates every lane left by `L`.
+    #[inline]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    fn rotl<const L: i32, const R: i32>(x: __m256i) -> __m256i {
+        _mm256_rol_epi64::<L>(x)
+    }
+);
 
 #[cfg(test)]
 mod tests {
@@ -609,6 +643,39 @@ mod tests {
                 }
             }
             assert_eq!(streams.get(r), st, "run {r}'s stream after the draws");
+        }
+    }
+
+    /// Each compiled fast path the CPU can run (AVX2; AVX-512 VL, which `fill_normals` prefers)
+    /// draws each run's own stream's bits, whichever the machine would pick.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn every_fast_path_draws_each_runs_own_stream() {
+        type Fill = unsafe fn(&mut Streams, &mut [f64], usize);
+        let has = |f: &str| match f {
+            "avx2" => std::arch::is_x86_feature_detected!("avx2"),
+            _ => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+            }
+        };
+        let paths: [(&str, Fill); 2] = [("avx2", avx2::fill), ("avx512", avx512::fill)];
+        for (name, fill) in paths.into_iter().filter(|(f, _)| has(f)) {
+            let seeds: Vec<u64> = (0..8).map(|r| 77 + r).collect();
+            let mut streams = Streams::new(seeds.iter().copied());
+            let mut buf = vec![0.0; 1500 * 8];
+            for r0 in [0, LANES] {
+                // SAFETY: the CPU has the path's features (filtered above).
+                unsafe { fill(&mut streams, &mut buf, r0) };
+            }
+            for (r, &seed) in seeds.iter().enumerate() {
+                let mut st = Stream::seed_from_u64(seed);
+                for row in 0..1500 {
+                    let want = st.normal().to_bits();
+                    assert_eq!(buf[row * 8 + r].to_bits(), want, "{name}, run {r}");
+                }
+                assert_eq!(streams.get(r), st, "{name}, run {r}'s stream");
+            }
         }
     }
 }
