@@ -802,21 +802,7 @@ fn reproduce(
         .into_iter()
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
     let files = check_reproductions(&entries, over, pool.current_num_threads())?;
-    // Every output directory is checked before anything runs: a reproduce root holds one
-    // directory per simulation, and each holds its own study only.
-    outdir::prepare_root(out, force, Hint::CLI)?;
-    let mut prepared: Vec<Option<outdir::Prepared>> = Vec::new();
-    for (file, sc) in &files {
-        let id = StudyId::study(sc.name());
-        let dir = out.join(sim_dir(file));
-        prepared.push(Some(outdir::prepare(&dir, &id, force, Hint::CLI)?));
-    }
-    let mut slam_prepared: Vec<(StudyId, Option<outdir::Prepared>)> = Vec::new();
-    for e in &slams {
-        let id = StudyId::new("slam", &slam::study_name(e.file, e.text)?);
-        let p = outdir::prepare(&out.join(e.name), &id, force, Hint::CLI)?;
-        slam_prepared.push((id, Some(p)));
-    }
+    let (mut prepared, mut slam_prepared) = prepare_reproductions(out, force, &files, &slams)?;
     let start = Instant::now();
     let mut code = ExitCode::SUCCESS;
     let mut pages: Vec<PathBuf> = Vec::new();
@@ -858,18 +844,13 @@ fn reproduce(
         }
         done.push((file, sweep));
     }
-    for (e, (id, prep)) in slams.iter().zip(slam_prepared.iter_mut()) {
-        let dir = out.join(e.name);
-        let st = slam::run_text(e.file, e.text, &dir, over.json)?;
-        let prep = prep.take().context("each SLAM study is prepared once")?;
-        commit(st, prep, id)?;
-        eprintln!("{:<16} {}", e.name, dir.display());
-        if html {
-            pages.push(interrupt::critical(&dir.join("report.html"), || {
-                report::write_page(&dir)
-            })?);
-        }
-    }
+    reproduce_slams(
+        &slams,
+        &mut slam_prepared,
+        out,
+        over,
+        html.then_some(&mut pages),
+    )?;
     if html {
         let index =
             interrupt::critical(&out.join("index.html"), || report::write_index(out, &pages))?;
@@ -883,6 +864,57 @@ fn reproduce(
         start.elapsed()
     );
     Ok(code)
+}
+
+/// The SLAM studies' identities and prepared directories (taken when each is committed).
+type PreparedSlams = Vec<(StudyId, Option<outdir::Prepared>)>;
+
+/// Every output directory of a reproduction, checked (and emptied with `force`) before anything
+/// runs: the root holds one directory per simulation, and each holds its own study only.
+fn prepare_reproductions(
+    out: &Path,
+    force: bool,
+    files: &[(&str, Scenario)],
+    slams: &[&registry::Entry],
+) -> Result<(Vec<Option<outdir::Prepared>>, PreparedSlams)> {
+    outdir::prepare_root(out, force, Hint::CLI)?;
+    let mut prepared = Vec::new();
+    for (file, sc) in files {
+        let id = StudyId::study(sc.name());
+        let dir = out.join(sim_dir(file));
+        prepared.push(Some(outdir::prepare(&dir, &id, force, Hint::CLI)?));
+    }
+    let mut slam_prepared = Vec::new();
+    for e in slams {
+        let id = StudyId::new("slam", &slam::study_name(e.file, e.text)?);
+        let p = outdir::prepare(&out.join(e.name), &id, force, Hint::CLI)?;
+        slam_prepared.push((id, Some(p)));
+    }
+    Ok((prepared, slam_prepared))
+}
+
+/// The SLAM reproductions (`slam` studies), each into its prepared directory; with `pages`,
+/// each one's HTML page too.
+fn reproduce_slams(
+    slams: &[&registry::Entry],
+    prepared: &mut PreparedSlams,
+    out: &Path,
+    over: &Overrides,
+    mut pages: Option<&mut Vec<PathBuf>>,
+) -> Result<()> {
+    for (e, (id, prep)) in slams.iter().zip(prepared.iter_mut()) {
+        let dir = out.join(e.name);
+        let st = slam::run_text(e.file, e.text, &dir, over.json)?;
+        let prep = prep.take().context("each SLAM study is prepared once")?;
+        commit(st, prep, id)?;
+        eprintln!("{:<16} {}", e.name, dir.display());
+        if let Some(pages) = pages.as_deref_mut() {
+            pages.push(interrupt::critical(&dir.join("report.html"), || {
+                report::write_page(&dir)
+            })?);
+        }
+    }
+    Ok(())
 }
 
 /// The registry entries `names` asks for (`all`: every one), each once.
