@@ -369,6 +369,43 @@ mod tests {
     use super::*;
     use crate::rng::Stream;
 
+    /// Applying the factor to each unit vector gives the columns of `C`, and `C Cᵀ` is the
+    /// covariance — through the Kronecker path (distinct points: `Q_A` positive definite,
+    /// Cholesky) and through the dense one (two agents at one point: `Q_A` singular, its factor
+    /// eigenvectors, which the panels' sums up to the diagonal would cut short).
+    #[test]
+    fn factor_reproduces_the_covariance() {
+        let kernel = crate::noise::Kernel::default();
+        let distinct: Vec<f64> = (0..9)
+            .flat_map(|i| {
+                let a = i as f64 * 0.7;
+                [a.cos() * (1.0 + 0.1 * i as f64), a.sin()]
+            })
+            .collect();
+        let mut twice = distinct.clone();
+        twice[2..4].copy_from_slice(&distinct[..2]);
+        for (pts, kron) in [(&distinct, true), (&twice, false)] {
+            let qa = crate::noise::agent_covariance(&kernel, pts, 2);
+            let cov = qa.kronecker(&DMatrix::identity(2, 2));
+            let f = Factor::of(&cov, 2);
+            let nd = cov.nrows();
+            let mut c = DMatrix::zeros(nd, nd);
+            let (mut e, mut col) = (vec![0.0; nd], vec![0.0; nd]);
+            for k in 0..nd {
+                e.fill(0.0);
+                e[k] = 1.0;
+                f.apply(&e, &mut col, 1);
+                c.column_mut(k).copy_from_slice(&col);
+            }
+            let err = (&c * c.transpose() - &cov).amax();
+            assert!(
+                err < 1e-12,
+                "C Cᵀ − Q off by {err:e} (Kronecker path: {kron})"
+            );
+            assert_eq!(matches!(f, Factor::Kron { .. }), kron);
+        }
+    }
+
     /// The register path (2 or 3 values per agent) gives the bits of the general one, and both
     /// (reading the factor in panels) equal the plain sum over j ≤ i of the row-major factor,
     /// for a number of agents that is not a multiple of four.
