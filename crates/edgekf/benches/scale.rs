@@ -2,7 +2,9 @@
 //! RKF and the JRKF, with white process noise (`Q = σ_w² I`) and with the dense spatial kernel of
 //! the thesis (ND × ND factor), and what the CRKF would cost at that size.
 //!
-//! `cargo bench -p edgekf --bench scale [-- N STEPS]` (one thread; default N = 1000, 2000 steps).
+//! `cargo bench -p edgekf --bench scale [-- N STEPS THREADS]` (default N = 1000, 2000 steps, one
+//! thread; with more, one run's large steps are shared between them: the JRKF's per-agent
+//! recursions and the noise factor).
 
 use std::time::Instant;
 
@@ -18,8 +20,9 @@ fn main() {
         .collect();
     let n = args.first().copied().unwrap_or(1000);
     let steps = args.get(1).copied().unwrap_or(2000);
+    let threads = args.get(2).copied().unwrap_or(1);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
+        .num_threads(threads)
         .build()
         .expect("pool");
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
@@ -28,7 +31,7 @@ fn main() {
     let d = design::design(&cand, design::Method::Yang).expect("trilateration graphs design");
     let fw = d.framework;
     println!(
-        "framework: N = {n}, {} links (designed by `{}` in {:.1} s)",
+        "framework: N = {n}, {} links (designed by `{}` in {:.1} s); {threads} thread(s)",
         fw.graph().links().len(),
         d.method,
         t.elapsed().as_secs_f64()

@@ -6,7 +6,7 @@ mod common;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use common::{hexagon, names, table};
+use common::{hexagon, names, table, trilateration_kernel};
 
 struct Counting;
 
@@ -35,6 +35,34 @@ static GLOBAL: Counting = Counting;
 fn step_loops_allocate_nothing() {
     allocations_do_not_grow_with_steps();
     ca_filters_allocate_nothing_per_step();
+    a_large_run_on_two_threads_allocates_nothing_per_step();
+}
+
+/// One run of 160 agents under the spatial kernel on two threads: the JRKF's recursions and
+/// means in slices, the noise factor's rows in halves, each by `rayon` within the step.
+fn a_large_run_on_two_threads_allocates_nothing_per_step() {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    // Every worker started (a thread's start-up allocates), before anything is counted.
+    pool.broadcast(|_| ());
+    let count = |steps: usize| {
+        let sc = trilateration_kernel(160, steps, steps / 2, names(&["jrkf", "rkf"]));
+        pool.install(|| {
+            let before = ALLOCS.load(Ordering::SeqCst);
+            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
+            let after = ALLOCS.load(Ordering::SeqCst);
+            assert_eq!(res.steps.len(), 3);
+            after - before
+        })
+    };
+    let short = count(40);
+    let long = count(400);
+    assert_eq!(
+        short, long,
+        "allocations: {short} for 40 steps, {long} for 400 steps"
+    );
 }
 
 fn allocations_do_not_grow_with_steps() {
@@ -42,6 +70,8 @@ fn allocations_do_not_grow_with_steps() {
         .num_threads(1)
         .build()
         .unwrap();
+    // Every worker started (a thread's start-up allocates), before anything is counted.
+    pool.broadcast(|_| ());
     let mut estimators = names(&["none", "mle", "rkf", "jrkf", "crkf", "oracle"]);
     estimators.push(table("mmse", "mmse", None, Some(1e-3)));
     // The adaptive filters (issue 25): per-run covariances and sensitivities, sized once.
@@ -78,6 +108,8 @@ fn ca_filters_allocate_nothing_per_step() {
         .num_threads(1)
         .build()
         .unwrap();
+    // Every worker started (a thread's start-up allocates), before anything is counted.
+    pool.broadcast(|_| ());
     let count = |steps: usize| {
         let text = format!(
             r#"

@@ -36,15 +36,16 @@ pub(super) struct Pack {
     q: Vec<Lane>,
     w: Vec<Lane>,
     sigma: Vec<Lane>,
+    /// `Kᵀ` of the last step (the gains [`Pack::read`] gives).
+    kt: Vec<Lane>,
 }
 
-/// The scratch of a pack's step, shared by all packs (it stays in cache while the packs'
-/// own `Q`, `W`, `Σ` stream through); after a step it holds that pack's gains.
+/// The scratch of a pack's step, shared by the packs one thread steps (it stays in cache
+/// while the packs' own `Q`, `W`, `Σ`, `Kᵀ` stream through).
 #[derive(Debug, Clone, Default)]
 pub(super) struct Work {
     prior: Vec<Lane>,
     s: Vec<Lane>,
-    kt: Vec<Lane>,
     at: Vec<Lane>,
     tmp: Vec<Lane>,
 }
@@ -56,7 +57,6 @@ impl Work {
         Self {
             prior: z.clone(),
             s: z.clone(),
-            kt: z.clone(),
             at: z.clone(),
             tmp: z,
         }
@@ -101,6 +101,7 @@ impl Pack {
             q: gather(0),
             w: gather(1),
             sigma: gather(2),
+            kt: vec![[0.0; LANES]; n * n],
         }
     }
 
@@ -134,13 +135,13 @@ impl Pack {
     }
 
     /// Lane `l`'s posterior `Σ` and gain `K` (row-major, as `jrkf::Block::gain`), after
-    /// [`Pack::step`] in `work`.
-    pub(super) fn read(&self, work: &Work, l: usize, sigma: &mut DMatrix<f64>, gain: &mut [f64]) {
+    /// [`Pack::step`].
+    pub(super) fn read(&self, l: usize, sigma: &mut DMatrix<f64>, gain: &mut [f64]) {
         for (v, x) in sigma.as_mut_slice().iter_mut().zip(&self.sigma) {
             *v = x[l];
         }
         // `gain[a n + b] = K[a, b] = Kᵀ[b, a]`: the column-major `Kᵀ` in order.
-        for (v, x) in gain.iter_mut().zip(&work.kt) {
+        for (v, x) in gain.iter_mut().zip(&self.kt) {
             *v = x[l];
         }
     }
@@ -156,15 +157,14 @@ impl Pack {
         let n = size.get();
         let nn = n * n;
         let Self {
-            wd, q, w, sigma, ..
-        } = self;
-        let Work {
-            prior,
-            s,
+            wd,
+            q,
+            w,
+            sigma,
             kt,
-            at,
-            tmp,
-        } = work;
+            ..
+        } = self;
+        let Work { prior, s, at, tmp } = work;
         // Slices of the matrices' exact length (a constant for a `Const` size), so the
         // compiler knows every index below is in bounds.
         let (wd, q, w) = (*wd, &q[..nn], &w[..nn]);

@@ -35,11 +35,13 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use super::adaptive::{adaptive_metrics, Adaptation, Assumed};
-use super::joseph_lanes::{Pack, Work, LANES};
+use super::joseph_lanes::{LaneStep, Pack, Work, LANES};
 use super::rkf::NoiseOptions;
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
@@ -360,6 +362,41 @@ fn agent_blocks(
     (blocks, max_n)
 }
 
+/// `x ← x + K (y − x)` for one agent's block (`n = x.len() / runs` rows × runs), with the
+/// innovation in `innov`.
+fn correct_mean(gain: &[f64], x: &mut [f64], y: &[f64], innov: &mut [f64], runs: usize) {
+    let n = x.len() / runs;
+    let innov = &mut innov[..n * runs];
+    for ((v, yv), xv) in innov.iter_mut().zip(y).zip(x.iter()) {
+        *v = yv - xv;
+    }
+    batch_gemv_acc(gain, n, innov, x, runs);
+}
+
+/// `agents` in `SLICES` contiguous slices of about equal rows.
+fn mean_slices(agent_rows: &[(usize, usize)]) -> Vec<std::ops::Range<usize>> {
+    let rows: usize = agent_rows.iter().map(|a| a.1).sum();
+    let mut cuts = [0; SLICES + 1];
+    for (k, cut) in cuts.iter_mut().enumerate().skip(1) {
+        let want = rows * k / SLICES;
+        *cut = agent_rows.partition_point(|a| a.0 < want);
+    }
+    cuts[SLICES] = agent_rows.len();
+    cuts.windows(2).map(|w| w[0]..w[1].max(w[0])).collect()
+}
+
+/// Each of `groups` groups' pack and lane (pack `usize::MAX`: in no pack, a group without
+/// edges).
+fn slots_of(packs: &[Pack], groups: usize) -> Vec<(usize, usize)> {
+    let mut slots = vec![(usize::MAX, 0); groups];
+    for (p, pack) in packs.iter().enumerate() {
+        for (l, &g) in pack.members().iter().enumerate() {
+            slots[g] = (p, l);
+        }
+    }
+    slots
+}
+
 /// The shared recursions (`blocks`, with edges) in packs of four of one block size, in order.
 fn packs_of(blocks: &[Block], d: usize) -> Vec<Pack> {
     let mut sizes: Vec<usize> = blocks.iter().map(|b| b.n).filter(|&n| n > 0).collect();
@@ -379,6 +416,20 @@ fn packs_of(blocks: &[Block], d: usize) -> Vec<Pack> {
     packs
 }
 
+/// Packs from which [`Jrkf::step_packs`] steps them in parallel (when the pool that builds the
+/// filter has more than one thread).
+const PARALLEL_PACKS: usize = 32;
+/// The slices of packs stepped in parallel (more than the threads, for balance: frozen packs
+/// cost nothing).
+const SLICES: usize = 8;
+
+/// What one step did to a pack: its lanes' outcome, and which lanes were frozen (not stepped).
+#[derive(Debug, Clone, Copy)]
+struct Stepped {
+    out: LaneStep,
+    frozen: [bool; LANES],
+}
+
 /// The joint filter of every agent.
 #[derive(Debug, Clone)]
 pub struct Jrkf {
@@ -394,9 +445,17 @@ pub struct Jrkf {
     extra: Option<DMatrix<f64>>,
     /// Shared: `blocks[group[i]]`; per run: `blocks[i * runs + r]`.
     blocks: Vec<Block>,
-    /// Shared (inputs not all lost): the groups' recursions four at a time, by block size.
+    /// Shared (inputs not all lost): the groups' recursions four at a time, by block size, and
+    /// what the last step did in each ([`Jrkf::step_packs`]).
     packs: Vec<Pack>,
-    work: Work,
+    stepped: Vec<Option<Stepped>>,
+    /// Each group's pack and lane.
+    slots: Vec<(usize, usize)>,
+    /// With the packs in slices: the agents in slices for the means' update, and the rows.
+    mean_slices: Vec<std::ops::Range<usize>>,
+    x_rows: usize,
+    /// One scratch per slice of the packs stepped in parallel (one: stepped in turn).
+    works: Vec<Work>,
     /// Shared: the group of each agent and one agent of each group.
     group: Vec<usize>,
     reps: Vec<usize>,
@@ -461,6 +520,13 @@ impl Jrkf {
         } else {
             Vec::new()
         };
+        let slots = slots_of(&packs, blocks.len());
+        // Built in the pool that runs it: slices only where there is a second thread.
+        let slices = if packs.len() >= PARALLEL_PACKS && rayon::current_num_threads() > 1 {
+            SLICES
+        } else {
+            1
+        };
         let ar = p_fail.and(m.ar());
         let extra = ar.map(|ar| {
             DMatrix::from_fn(d, d, |a, b| {
@@ -482,8 +548,12 @@ impl Jrkf {
             coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
             extra,
             blocks,
+            stepped: vec![None; packs.len()],
+            slots,
+            mean_slices: mean_slices(&agent_rows),
+            x_rows: m.num_edges() * d,
+            works: vec![Work::new(max_n); slices],
             packs,
-            work: Work::new(max_n),
             group: agent_group.0,
             reps: agent_group.1,
             agent_rows,
@@ -491,7 +561,7 @@ impl Jrkf {
             lost: vec![false; max_n / d.max(1)],
             seen: vec![true; max_n / d.max(1)],
             du: vec![0.0; max_n],
-            innov: vec![0.0; max_n * runs],
+            innov: vec![0.0; max_n * runs * SLICES],
             hist: vec![vec![0.0; m.agents() * d * runs]; ar.map_or(0, |a| a.order() + 1)],
             breakdown: None,
         }
@@ -536,28 +606,66 @@ impl Jrkf {
 
     /// The shared recursions' step, four lanes at a time; the first group (in order) whose
     /// innovation covariance is not positive definite, if any.
+    ///
+    /// With many packs (1,000 agents under a spatial kernel: 250) the packs are stepped in
+    /// [`SLICES`] slices in parallel, each slice in its own scratch; every pack's arithmetic is
+    /// its own, so the bits do not depend on the threads. Each stepped lane's posterior and gain
+    /// are then copied to its block.
     fn step_packs(&mut self) -> Option<usize> {
+        let Self {
+            blocks,
+            packs,
+            stepped,
+            works,
+            slots,
+            ..
+        } = self;
+        let frozen_blocks = &*blocks;
+        let step = |packs: &mut [Pack], stepped: &mut [Option<Stepped>], work: &mut Work| {
+            for (p, st) in packs.iter_mut().zip(stepped) {
+                let members = p.members();
+                let frozen: [bool; LANES] = std::array::from_fn(|l| {
+                    members.get(l).is_none_or(|&g| frozen_blocks[g].frozen)
+                });
+                *st = (!frozen.iter().all(|f| *f)).then(|| Stepped {
+                    out: p.step(work, frozen),
+                    frozen,
+                });
+            }
+        };
+        if let [work] = works.as_mut_slice() {
+            step(packs, stepped, work);
+        } else {
+            let per = packs.len().div_ceil(works.len());
+            packs
+                .par_chunks_mut(per)
+                .zip(stepped.par_chunks_mut(per))
+                .zip(works.par_iter_mut())
+                .for_each(|((p, st), work)| step(p, st, work));
+        }
         let mut failed: Option<usize> = None;
-        for p in &mut self.packs {
-            let members = p.members();
-            let frozen: [bool; LANES] =
-                std::array::from_fn(|l| members.get(l).is_none_or(|&g| self.blocks[g].frozen));
-            if frozen.iter().all(|f| *f) {
-                continue;
-            }
-            let out = p.step(&mut self.work, frozen);
-            for (l, &g) in p.members().iter().enumerate() {
-                if frozen[l] {
-                    continue;
+        for (p, st) in packs.iter().zip(stepped.iter()) {
+            if let Some(st) = st {
+                for (l, &g) in p.members().iter().enumerate() {
+                    if !st.frozen[l] && !st.out.ok[l] {
+                        failed = Some(failed.map_or(g, |f| f.min(g)));
+                    }
                 }
-                if !out.ok[l] {
-                    failed = Some(failed.map_or(g, |f| f.min(g)));
-                    continue;
-                }
-                let b = &mut self.blocks[g];
-                p.read(&self.work, l, &mut b.sigma, &mut b.gain);
-                b.frozen = out.converged[l];
             }
+        }
+        let (packs, stepped) = (&*packs, &*stepped);
+        let read = |(b, &(p, l)): (&mut Block, &(usize, usize))| {
+            if let Some(Some(st)) = stepped.get(p) {
+                if !st.frozen[l] && st.out.ok[l] {
+                    packs[p].read(l, &mut b.sigma, &mut b.gain);
+                    b.frozen = st.out.converged[l];
+                }
+            }
+        };
+        if works.len() == 1 {
+            blocks.iter_mut().zip(slots.iter()).for_each(read);
+        } else {
+            blocks.par_iter_mut().zip(slots.par_iter()).for_each(read);
         }
         failed
     }
@@ -575,11 +683,14 @@ impl Jrkf {
             self.fail(self.reps[g]);
             return;
         }
+        if self.works.len() > 1 {
+            self.update_means_in_slices(s);
+            return;
+        }
         for (i, range) in self.agent_edges.iter().enumerate() {
             if range.is_empty() {
                 continue;
             }
-            let b = &self.blocks[self.group[i]];
             let (row, n) = self.agent_rows[i];
             let span = row * r..(row + n) * r;
             if all_lost {
@@ -604,13 +715,51 @@ impl Jrkf {
                     *xv += dv;
                 }
             }
-            let x = &mut self.x[span.clone()];
-            let innov = &mut self.innov[..n * r];
-            for ((v, yv), xv) in innov.iter_mut().zip(&s.y[span]).zip(x.iter()) {
-                *v = yv - xv;
-            }
-            batch_gemv_acc(&b.gain, n, innov, x, r);
+            let gain = &self.blocks[self.group[i]].gain;
+            correct_mean(
+                gain,
+                &mut self.x[span.clone()],
+                &s.y[span],
+                &mut self.innov,
+                r,
+            );
         }
+    }
+
+    /// The means' update (inputs received) with the agents in [`SLICES`] contiguous slices in
+    /// parallel, each with its own innovation scratch; each agent's arithmetic is the same.
+    fn update_means_in_slices(&mut self, s: &Step<'_>) {
+        let r = self.runs;
+        let mut rest = self.x.as_mut_slice();
+        let mut end = 0;
+        let parts: [(&mut [f64], usize, std::ops::Range<usize>); SLICES] =
+            std::array::from_fn(|k| {
+                let agents = self.mean_slices[k].clone();
+                let start = end;
+                end = self.agent_rows.get(agents.end).map_or(self.x_rows, |a| a.0);
+                let (part, tail) = std::mem::take(&mut rest).split_at_mut((end - start) * r);
+                rest = tail;
+                (part, start, agents)
+            });
+        let innov_len = self.innov.len() / SLICES;
+        let (blocks, group, agent_rows) = (&self.blocks, &self.group, &self.agent_rows);
+        parts
+            .into_par_iter()
+            .zip(self.innov.par_chunks_mut(innov_len))
+            .for_each(|((x, start, agents), innov)| {
+                for i in agents {
+                    let (row, n) = agent_rows[i];
+                    if n == 0 {
+                        continue;
+                    }
+                    let (span, local) = (row * r..(row + n) * r, (row - start) * r);
+                    let x = &mut x[local..local + n * r];
+                    for (xv, dv) in x.iter_mut().zip(&s.du[span.clone()]) {
+                        *xv += dv;
+                    }
+                    correct_mean(&blocks[group[i]].gain, x, &s.y[span], innov, r);
+                }
+            });
     }
 
     fn step_per_run(&mut self, s: &Step<'_>) {
@@ -833,7 +982,7 @@ mod tests {
                             continue;
                         }
                         let (mut sigma, mut gain) = (DMatrix::zeros(n, n), vec![0.0; n * n]);
-                        pack.read(&work, l, &mut sigma, &mut gain);
+                        pack.read(l, &mut sigma, &mut gain);
                         assert_eq!(bits(sigma.as_slice()), bits(b.sigma.as_slice()), "n {n}");
                         assert_eq!(bits(&gain), bits(&b.gain), "n {n}, lane {l}");
                         assert_eq!(out.converged[l], b.frozen, "n {n}, lane {l}");

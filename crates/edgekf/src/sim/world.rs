@@ -119,8 +119,8 @@ impl Factor {
 fn kron_apply(a: &[f64], n: usize, w: usize, xi: &[f64], out: &mut [f64]) {
     match w {
         // One run in 2-D or 3-D (the 1,000-agent studies): the sums in registers.
-        2 => kron_small::<2>(a, n, xi, out),
-        3 => kron_small::<3>(a, n, xi, out),
+        2 => kron_split::<2>(a, n, xi, out, 0..n, KRON_SPLITS),
+        3 => kron_split::<3>(a, n, xi, out, 0..n, KRON_SPLITS),
         _ => kron_wide(a, n, w, xi, out),
     }
 }
@@ -148,15 +148,52 @@ fn kron_wide(a: &[f64], n: usize, w: usize, xi: &[f64], out: &mut [f64]) {
     }
 }
 
-/// [`kron_wide`] for `w = W` values per agent, the 4·W sums in registers: for each value, one
-/// 4-wide product of the panel's column `j` (four agents' coefficients, contiguous) — AVX2
-/// without fused multiply–adds, so the bits of one sum at a time.
-fn kron_small<const W: usize>(a: &[f64], n: usize, xi: &[f64], out: &mut [f64]) {
+/// From this many agents the one-run factor is applied by two threads (rows split in halves of
+/// equal work; `2^KRON_SPLITS` parts): each row's sums are the same, so are the bits.
+const KRON_PARALLEL: usize = 256;
+const KRON_SPLITS: u32 = 2;
+
+/// [`kron_small`] of `rows` (`out` holds those rows), split in two parts of equal work (row `i`
+/// costs `i + 1` products) `depth` times over, the parts run by [`rayon::join`].
+fn kron_split<const W: usize>(
+    a: &[f64],
+    n: usize,
+    xi: &[f64],
+    out: &mut [f64],
+    rows: std::ops::Range<usize>,
+    depth: u32,
+) {
+    let (lo, hi) = (rows.start, rows.end);
+    // The middle of the work, on a panel boundary.
+    let mid = (((lo * lo + hi * hi) as f64 / 2.0).sqrt() as usize).next_multiple_of(KRON_ROWS);
+    if depth == 0 || n < KRON_PARALLEL || mid <= lo || mid >= hi {
+        kron_small::<W>(a, n, xi, out, rows);
+        return;
+    }
+    let (first, second) = out.split_at_mut((mid - lo) * W);
+    rayon::join(
+        || kron_split::<W>(a, n, xi, first, lo..mid, depth - 1),
+        || kron_split::<W>(a, n, xi, second, mid..hi, depth - 1),
+    );
+}
+
+/// [`kron_wide`] for `w = W` values per agent, the 4·W sums in registers, for the agents `rows`
+/// (whole panels but the last; `out` holds those rows): for each value, one 4-wide product of
+/// the panel's column `j` (four agents' coefficients, contiguous) — AVX2 without fused
+/// multiply–adds, so the bits of one sum at a time.
+fn kron_small<const W: usize>(
+    a: &[f64],
+    n: usize,
+    xi: &[f64],
+    out: &mut [f64],
+    rows: std::ops::Range<usize>,
+) {
     with_avx2(
         #[inline(always)]
         || {
-            let mut i = 0;
-            while i < n {
+            let (start, end) = (rows.start, rows.end);
+            let mut i = start;
+            while i < end {
                 let rows = KRON_ROWS.min(n - i);
                 let cols = i + rows;
                 let panel = &a[i * n..][..KRON_ROWS * cols];
@@ -173,7 +210,7 @@ fn kron_small<const W: usize>(a: &[f64], n: usize, xi: &[f64], out: &mut [f64]) 
                 }
                 for r in 0..rows {
                     for (v, acc) in acc.iter().enumerate() {
-                        out[(i + r) * W + v] = acc[r];
+                        out[(i - start + r) * W + v] = acc[r];
                     }
                 }
                 i += rows;
@@ -411,7 +448,17 @@ mod tests {
     /// for a number of agents that is not a multiple of four.
     #[test]
     fn kron_paths_agree_bit_for_bit() {
-        let n = 11;
+        // 11 agents: one thread, a partial panel; 301: split between threads (in a pool of two).
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("pool");
+        for n in [11, KRON_PARALLEL + 45] {
+            pool.install(|| kron_paths_agree(n));
+        }
+    }
+
+    fn kron_paths_agree(n: usize) {
         let mut st = Stream::seed_from_u64(5);
         let a: Vec<f64> = (0..n * n)
             .map(|k| if k % n <= k / n { st.normal() } else { 0.0 })

@@ -53,6 +53,41 @@ pub fn hexagon(
     build(&spec(sigma_w, sigma_v, steps, runs, every, estimators))
 }
 
+/// One run of a designed 2-trilateration framework of `n` agents (the scale bench's, seed 3)
+/// under the thesis's spatial kernel (4.14), `steps` steps reported every `every`.
+pub fn trilateration_kernel(
+    n: usize,
+    steps: usize,
+    every: usize,
+    estimators: Vec<EstimatorEntry>,
+) -> Scenario {
+    use edgekf::design::{self, generators};
+    use edgekf::scenario::FrameworkSpec;
+    use rand::SeedableRng;
+
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+    let cand = generators::trilateration(n, 2, 3, &mut rng);
+    let fw = design::design(&cand, design::Method::Yang)
+        .expect("trilateration graphs design")
+        .framework;
+    let mut s = ScenarioSpec::minimal("trilateration", &[]);
+    s.framework = FrameworkSpec {
+        dim: Some(2),
+        config: Some((0..n).map(|i| fw.point(i).to_vec()).collect()),
+        edges: Some(fw.graph().links().iter().map(|&(i, j)| [i, j]).collect()),
+        weights: Some(fw.weights().to_vec()),
+        leaders: Some(fw.leaders().to_vec()),
+        ..FrameworkSpec::default()
+    };
+    s.estimators = estimators;
+    s.noise.kernel = edgekf::noise::Kernel::default();
+    s.sim.runs = 1;
+    s.sim.steps = steps;
+    s.sim.every = every;
+    s.sim.allow_divergence = true;
+    build(&s)
+}
+
 /// Runs a scenario on the current rayon pool.
 pub fn run(sc: &Scenario) -> Results {
     edgekf::sim::run(sc, &edgekf::sim::Quiet).expect("not cancelled")
