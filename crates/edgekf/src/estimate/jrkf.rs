@@ -174,7 +174,7 @@ impl Configured for Config {
         let md = m.num_edges() as f64 * d;
         if self.shared_gain(m) {
             // Without every input lost, the shared recursions step `LANES` at a time.
-            let lanes = if self.ar.is_some_and(|p| p >= 1.0) {
+            let lanes = if every_input_lost(self.ar) {
                 1.0
             } else {
                 LANES as f64
@@ -229,6 +229,12 @@ impl Configured for Config {
             _ => Consistency::Exact,
         }
     }
+}
+
+/// `jrkf-ar` with every neighbour input lost (`p_fail ≥ 1`): each step adds the AR prediction's
+/// noise, so the shared recursions step one at a time ([`Jrkf::step_blocks`]), not in packs.
+fn every_input_lost(p_fail: Option<f64>) -> bool {
+    p_fail.is_some_and(|p| p >= 1.0)
 }
 
 /// One agent's joint covariance recursion (and its gain, row-major).
@@ -515,7 +521,7 @@ impl Jrkf {
                 .flat_map(|b| std::iter::repeat_n(b.clone(), runs))
                 .collect()
         };
-        let packs = if shared && p_fail.is_none_or(|p| p < 1.0) {
+        let packs = if shared && !every_input_lost(p_fail) {
             packs_of(&blocks, d)
         } else {
             Vec::new()
@@ -671,7 +677,7 @@ impl Jrkf {
     }
 
     fn step_shared(&mut self, s: &Step<'_>) {
-        let all_lost = self.p_fail.is_some_and(|p| p >= 1.0);
+        let all_lost = every_input_lost(self.p_fail);
         let r = self.runs;
         let d = self.dim;
         let failed = if self.packs.is_empty() {
