@@ -436,6 +436,40 @@ struct Stepped {
     frozen: [bool; LANES],
 }
 
+/// The shared recursions in packs ([`Jrkf::step_packs`]) and, with a second thread, their
+/// slices and the means' slices ([`Jrkf::update_means_in_slices`]).
+#[derive(Debug, Clone)]
+struct Packed {
+    packs: Vec<Pack>,
+    /// What the last step did in each pack.
+    stepped: Vec<Option<Stepped>>,
+    /// Each group's pack and lane.
+    slots: Vec<(usize, usize)>,
+    /// One scratch per slice of the packs stepped in parallel (one: stepped in turn).
+    works: Vec<Work>,
+    /// The agents in slices for the means' update.
+    mean_slices: Vec<std::ops::Range<usize>>,
+}
+
+impl Packed {
+    /// `packs` of `groups` recursions of up to `max_n` rows, sliced (built in the pool that runs
+    /// the filter) only where there is a second thread and enough packs.
+    fn new(packs: Vec<Pack>, groups: usize, agent_rows: &[(usize, usize)], max_n: usize) -> Self {
+        let slices = if packs.len() >= PARALLEL_PACKS && rayon::current_num_threads() > 1 {
+            SLICES
+        } else {
+            1
+        };
+        Self {
+            stepped: vec![None; packs.len()],
+            slots: slots_of(&packs, groups),
+            works: vec![Work::new(max_n); slices],
+            mean_slices: mean_slices(agent_rows),
+            packs,
+        }
+    }
+}
+
 /// The joint filter of every agent.
 #[derive(Debug, Clone)]
 pub struct Jrkf {
@@ -451,17 +485,10 @@ pub struct Jrkf {
     extra: Option<DMatrix<f64>>,
     /// Shared: `blocks[group[i]]`; per run: `blocks[i * runs + r]`.
     blocks: Vec<Block>,
-    /// Shared (inputs not all lost): the groups' recursions four at a time, by block size, and
-    /// what the last step did in each ([`Jrkf::step_packs`]).
-    packs: Vec<Pack>,
-    stepped: Vec<Option<Stepped>>,
-    /// Each group's pack and lane.
-    slots: Vec<(usize, usize)>,
-    /// With the packs in slices: the agents in slices for the means' update, and the rows.
-    mean_slices: Vec<std::ops::Range<usize>>,
+    /// Shared (inputs not all lost): the groups' recursions four at a time.
+    packed: Packed,
+    /// The rows of `x` (edges × D).
     x_rows: usize,
-    /// One scratch per slice of the packs stepped in parallel (one: stepped in turn).
-    works: Vec<Work>,
     /// Shared: the group of each agent and one agent of each group.
     group: Vec<usize>,
     reps: Vec<usize>,
@@ -526,13 +553,7 @@ impl Jrkf {
         } else {
             Vec::new()
         };
-        let slots = slots_of(&packs, blocks.len());
-        // Built in the pool that runs it: slices only where there is a second thread.
-        let slices = if packs.len() >= PARALLEL_PACKS && rayon::current_num_threads() > 1 {
-            SLICES
-        } else {
-            1
-        };
+        let packed = Packed::new(packs, blocks.len(), &agent_rows, max_n);
         let ar = p_fail.and(m.ar());
         let extra = ar.map(|ar| {
             DMatrix::from_fn(d, d, |a, b| {
@@ -554,12 +575,8 @@ impl Jrkf {
             coeffs: ar.map(|a| a.coeffs.clone()).unwrap_or_default(),
             extra,
             blocks,
-            stepped: vec![None; packs.len()],
-            slots,
-            mean_slices: mean_slices(&agent_rows),
+            packed,
             x_rows: m.num_edges() * d,
-            works: vec![Work::new(max_n); slices],
-            packs,
             group: agent_group.0,
             reps: agent_group.1,
             agent_rows,
@@ -620,10 +637,14 @@ impl Jrkf {
     fn step_packs(&mut self) -> Option<usize> {
         let Self {
             blocks,
-            packs,
-            stepped,
-            works,
-            slots,
+            packed:
+                Packed {
+                    packs,
+                    stepped,
+                    works,
+                    slots,
+                    ..
+                },
             ..
         } = self;
         let frozen_blocks = &*blocks;
@@ -680,7 +701,7 @@ impl Jrkf {
         let all_lost = every_input_lost(self.p_fail);
         let r = self.runs;
         let d = self.dim;
-        let failed = if self.packs.is_empty() {
+        let failed = if self.packed.packs.is_empty() {
             self.step_blocks(all_lost)
         } else {
             self.step_packs()
@@ -689,7 +710,7 @@ impl Jrkf {
             self.fail(self.reps[g]);
             return;
         }
-        if self.works.len() > 1 {
+        if self.packed.works.len() > 1 {
             self.update_means_in_slices(s);
             return;
         }
@@ -740,7 +761,7 @@ impl Jrkf {
         let mut end = 0;
         let parts: [(&mut [f64], usize, std::ops::Range<usize>); SLICES] =
             std::array::from_fn(|k| {
-                let agents = self.mean_slices[k].clone();
+                let agents = self.packed.mean_slices[k].clone();
                 let start = end;
                 end = self.agent_rows.get(agents.end).map_or(self.x_rows, |a| a.0);
                 let (part, tail) = std::mem::take(&mut rest).split_at_mut((end - start) * r);
