@@ -383,31 +383,11 @@ fn run(
         .with_context(|| format!("cannot read {}", scenario.display()))?;
     let source = scenario.display().to_string();
     if let io::Kind::Slam = io::kind_of(&text) {
-        if over.runs.is_some()
-            || over.steps.is_some()
-            || over.seed.is_some()
-            || over.every.is_some()
-            || shard.is_some()
-        {
-            bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
-        }
-        let id = StudyId::new("slam", &slam::study_name(&source, &text)?);
-        let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
-        let st = slam::run_text(&source, &text, out, over.json)?;
-        commit(st, prep, &id)?;
-        return Ok(ExitCode::SUCCESS);
+        return run_slam(&source, &text, out, shard.is_some(), force, over);
     }
     let sc = load(&source, &text, scenario.parent(), over)?;
     let pool = pool(over.threads)?;
-    let range = match shard {
-        Some((_, k)) if k > sc.runs() => bail!(
-            "flag `--shard`: {k} shards for {} runs leaves some shards empty; use at most {} shards",
-            sc.runs(),
-            sc.runs()
-        ),
-        Some((i, k)) => sim::shard_range(sc.runs(), i, k),
-        None => 0..sc.runs(),
-    };
+    let range = shard_runs(&sc, shard)?;
     check_cost(&sc, range.len(), pool.current_num_threads(), over)?;
     let id = if shard.is_some() {
         StudyId::new("shard", sc.name())
@@ -454,6 +434,43 @@ fn run(
     commit(st, prep, &id)?;
     eprintln!("wrote {}", out.display());
     Ok(report(&sc, &res, over))
+}
+
+/// `edgekf run` of a SLAM scenario (`source`'s `text`): the filter study's flags are refused.
+fn run_slam(
+    source: &str,
+    text: &str,
+    out: &Path,
+    shard: bool,
+    force: bool,
+    over: &Overrides,
+) -> Result<ExitCode> {
+    if over.runs.is_some()
+        || over.steps.is_some()
+        || over.seed.is_some()
+        || over.every.is_some()
+        || shard
+    {
+        bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
+    }
+    let id = StudyId::new("slam", &slam::study_name(source, text)?);
+    let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
+    let st = slam::run_text(source, text, out, over.json)?;
+    commit(st, prep, &id)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The runs of `--shard i/k` (all of them without it), or why the flag does not fit.
+fn shard_runs(sc: &Scenario, shard: Option<(usize, usize)>) -> Result<std::ops::Range<usize>> {
+    Ok(match shard {
+        Some((_, k)) if k > sc.runs() => bail!(
+            "flag `--shard`: {k} shards for {} runs leaves some shards empty; use at most {} shards",
+            sc.runs(),
+            sc.runs()
+        ),
+        Some((i, k)) => sim::shard_range(sc.runs(), i, k),
+        None => 0..sc.runs(),
+    })
 }
 
 /// Prints the summary; the exit code says whether every estimator completed.
