@@ -25,26 +25,7 @@ fn main() {
         .num_threads(threads)
         .build()
         .expect("pool");
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
-    let t = Instant::now();
-    let cand = generators::trilateration(n, 2, 3, &mut rng);
-    let d = design::design(&cand, design::Method::Yang).expect("trilateration graphs design");
-    let fw = d.framework;
-    println!(
-        "framework: N = {n}, {} links (designed by `{}` in {:.1} s); {threads} thread(s)",
-        fw.graph().links().len(),
-        d.method,
-        t.elapsed().as_secs_f64()
-    );
-    let spec_fw = FrameworkSpec {
-        dim: Some(2),
-        config: Some((0..n).map(|i| fw.point(i).to_vec()).collect()),
-        edges: Some(fw.graph().links().iter().map(|&(i, j)| [i, j]).collect()),
-        weights: Some(fw.weights().to_vec()),
-        leaders: Some(fw.leaders().to_vec()),
-        name: Some(format!("trilateration-{n}")),
-        ..FrameworkSpec::default()
-    };
+    let spec_fw = framework(n, threads);
     for (kernel, label) in [
         (Kernel::White, "white Q"),
         (Kernel::default(), "thesis kernel (4.14), dense Q"),
@@ -54,23 +35,8 @@ fn main() {
             if only.as_deref().is_some_and(|o| o != est && o != label) {
                 continue;
             }
-            let mut spec = ScenarioSpec::minimal("scale", &[]);
-            spec.framework = spec_fw.clone();
-            spec.estimators = vec![EstimatorEntry::kind(est)];
-            spec.noise.kernel = kernel;
-            spec.sim.runs = 1;
-            spec.sim.steps = steps;
-            spec.sim.every = steps;
             let t = Instant::now();
-            // The closed loop's step bound: pick Δt at 3/4 of it.
-            let lmax = {
-                let mut s = spec.clone();
-                s.sim.allow_divergence = true;
-                let sc = Scenario::from_spec(&s, None).expect("valid");
-                sc.step_bound() / sc.dt()
-            };
-            spec.sim.dt = 1.5 / lmax;
-            let sc = Scenario::from_spec(&spec, None).expect("valid");
+            let sc = scenario(&spec_fw, est, kernel, steps);
             let setup = t.elapsed().as_secs_f64();
             let cost = edgekf::sim::cost(&sc, 1, 1);
             if est == "crkf" {
@@ -97,4 +63,48 @@ fn main() {
             );
         }
     }
+}
+
+/// A designed 2-trilateration framework of `n` agents (seed 3), as a scenario's framework.
+fn framework(n: usize, threads: usize) -> FrameworkSpec {
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+    let t = Instant::now();
+    let cand = generators::trilateration(n, 2, 3, &mut rng);
+    let d = design::design(&cand, design::Method::Yang).expect("trilateration graphs design");
+    let fw = d.framework;
+    println!(
+        "framework: N = {n}, {} links (designed by `{}` in {:.1} s); {threads} thread(s)",
+        fw.graph().links().len(),
+        d.method,
+        t.elapsed().as_secs_f64()
+    );
+    FrameworkSpec {
+        dim: Some(2),
+        config: Some((0..n).map(|i| fw.point(i).to_vec()).collect()),
+        edges: Some(fw.graph().links().iter().map(|&(i, j)| [i, j]).collect()),
+        weights: Some(fw.weights().to_vec()),
+        leaders: Some(fw.leaders().to_vec()),
+        name: Some(format!("trilateration-{n}")),
+        ..FrameworkSpec::default()
+    }
+}
+
+/// One run of `est` on `fw` under `kernel` for `steps` steps, Δt at 3/4 of the closed loop's
+/// step bound.
+fn scenario(fw: &FrameworkSpec, est: &str, kernel: Kernel, steps: usize) -> Scenario {
+    let mut spec = ScenarioSpec::minimal("scale", &[]);
+    spec.framework = fw.clone();
+    spec.estimators = vec![EstimatorEntry::kind(est)];
+    spec.noise.kernel = kernel;
+    spec.sim.runs = 1;
+    spec.sim.steps = steps;
+    spec.sim.every = steps;
+    let lmax = {
+        let mut s = spec.clone();
+        s.sim.allow_divergence = true;
+        let sc = Scenario::from_spec(&s, None).expect("valid");
+        sc.step_bound() / sc.dt()
+    };
+    spec.sim.dt = 1.5 / lmax;
+    Scenario::from_spec(&spec, None).expect("valid")
 }

@@ -38,24 +38,35 @@ fn step_loops_allocate_nothing() {
     a_large_run_on_two_threads_allocates_nothing_per_step();
 }
 
+/// A pool of `threads` threads, every worker started (a thread's start-up allocates) before
+/// anything is counted.
+fn started_pool(threads: usize) -> rayon::ThreadPool {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.broadcast(|_| ());
+    pool
+}
+
+/// The allocations of a whole simulation of `sc` in `pool` (which reports 3 steps).
+fn allocations(pool: &rayon::ThreadPool, sc: &edgekf::scenario::Scenario) -> usize {
+    pool.install(|| {
+        let before = ALLOCS.load(Ordering::SeqCst);
+        let res = edgekf::sim::run(sc, &edgekf::sim::Quiet).unwrap();
+        let after = ALLOCS.load(Ordering::SeqCst);
+        assert_eq!(res.steps.len(), 3);
+        after - before
+    })
+}
+
 /// One run of 160 agents under the spatial kernel on two threads: the JRKF's recursions and
 /// means in slices, the noise factor's rows in halves, each by `rayon` within the step.
 fn a_large_run_on_two_threads_allocates_nothing_per_step() {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
-    // Every worker started (a thread's start-up allocates), before anything is counted.
-    pool.broadcast(|_| ());
+    let pool = started_pool(2);
     let count = |steps: usize| {
         let sc = trilateration_kernel(160, steps, steps / 2, names(&["jrkf", "rkf"]));
-        pool.install(|| {
-            let before = ALLOCS.load(Ordering::SeqCst);
-            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
-            let after = ALLOCS.load(Ordering::SeqCst);
-            assert_eq!(res.steps.len(), 3);
-            after - before
-        })
+        allocations(&pool, &sc)
     };
     let short = count(40);
     let long = count(400);
@@ -66,12 +77,7 @@ fn a_large_run_on_two_threads_allocates_nothing_per_step() {
 }
 
 fn allocations_do_not_grow_with_steps() {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    // Every worker started (a thread's start-up allocates), before anything is counted.
-    pool.broadcast(|_| ());
+    let pool = started_pool(1);
     let mut estimators = names(&["none", "mle", "rkf", "jrkf", "crkf", "oracle"]);
     estimators.push(table("mmse", "mmse", None, Some(1e-3)));
     // The adaptive filters (issue 25): per-run covariances and sensitivities, sized once.
@@ -85,13 +91,7 @@ fn allocations_do_not_grow_with_steps() {
     // Both report exactly steps {1, every, steps}: 3 reports.
     let count = |steps: usize| {
         let sc = hexagon(0.001, 0.1, steps, 3, steps / 2, estimators.clone());
-        pool.install(|| {
-            let before = ALLOCS.load(Ordering::SeqCst);
-            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
-            let after = ALLOCS.load(Ordering::SeqCst);
-            assert_eq!(res.steps.len(), 3);
-            after - before
-        })
+        allocations(&pool, &sc)
     };
     let short = count(200);
     let long = count(4000);
@@ -104,12 +104,7 @@ fn allocations_do_not_grow_with_steps() {
 fn ca_filters_allocate_nothing_per_step() {
     // rkf-ca and garkf (decoupled axes, shared covariances until the first lost link, then
     // per run) under random link losses, with the metric edge's PCRB.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    // Every worker started (a thread's start-up allocates), before anything is counted.
-    pool.broadcast(|_| ());
+    let pool = started_pool(1);
     let count = |steps: usize| {
         let text = format!(
             r#"
@@ -133,13 +128,7 @@ edge = [1, 0]
         );
         let spec: edgekf::scenario::ScenarioSpec = toml::from_str(&text).unwrap();
         let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
-        pool.install(|| {
-            let before = ALLOCS.load(Ordering::SeqCst);
-            let res = edgekf::sim::run(&sc, &edgekf::sim::Quiet).unwrap();
-            let after = ALLOCS.load(Ordering::SeqCst);
-            assert_eq!(res.steps.len(), 3);
-            after - before
-        })
+        allocations(&pool, &sc)
     };
     // A first run initialises a process-wide cache once (one allocation); not counted.
     count(200);

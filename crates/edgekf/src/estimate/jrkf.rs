@@ -447,7 +447,7 @@ struct Packed {
     slots: Vec<(usize, usize)>,
     /// One scratch per slice of the packs stepped in parallel (one: stepped in turn).
     works: Vec<Work>,
-    /// The agents in slices for the means' update.
+    /// Sliced: the agents in slices for the means' update.
     mean_slices: Vec<std::ops::Range<usize>>,
 }
 
@@ -464,9 +464,18 @@ impl Packed {
             stepped: vec![None; packs.len()],
             slots: slots_of(&packs, groups),
             works: vec![Work::new(max_n); slices],
-            mean_slices: mean_slices(agent_rows),
+            mean_slices: if slices > 1 {
+                mean_slices(agent_rows)
+            } else {
+                Vec::new()
+            },
             packs,
         }
+    }
+
+    /// Whether the packs and the means are stepped in slices in parallel.
+    fn sliced(&self) -> bool {
+        self.works.len() > 1
     }
 }
 
@@ -487,8 +496,6 @@ pub struct Jrkf {
     blocks: Vec<Block>,
     /// Shared (inputs not all lost): the groups' recursions four at a time.
     packed: Packed,
-    /// The rows of `x` (edges × D).
-    x_rows: usize,
     /// Shared: the group of each agent and one agent of each group.
     group: Vec<usize>,
     reps: Vec<usize>,
@@ -554,6 +561,7 @@ impl Jrkf {
             Vec::new()
         };
         let packed = Packed::new(packs, blocks.len(), &agent_rows, max_n);
+        let slices = packed.works.len();
         let ar = p_fail.and(m.ar());
         let extra = ar.map(|ar| {
             DMatrix::from_fn(d, d, |a, b| {
@@ -576,7 +584,6 @@ impl Jrkf {
             extra,
             blocks,
             packed,
-            x_rows: m.num_edges() * d,
             group: agent_group.0,
             reps: agent_group.1,
             agent_rows,
@@ -584,7 +591,8 @@ impl Jrkf {
             lost: vec![false; max_n / d.max(1)],
             seen: vec![true; max_n / d.max(1)],
             du: vec![0.0; max_n],
-            innov: vec![0.0; max_n * runs * SLICES],
+            // One innovation scratch per slice of agents.
+            innov: vec![0.0; max_n * runs * slices],
             hist: vec![vec![0.0; m.agents() * d * runs]; ar.map_or(0, |a| a.order() + 1)],
             breakdown: None,
         }
@@ -660,6 +668,7 @@ impl Jrkf {
                 });
             }
         };
+        let sliced = works.len() > 1;
         if let [work] = works.as_mut_slice() {
             step(packs, stepped, work);
         } else {
@@ -689,10 +698,10 @@ impl Jrkf {
                 }
             }
         };
-        if works.len() == 1 {
-            blocks.iter_mut().zip(slots.iter()).for_each(read);
-        } else {
+        if sliced {
             blocks.par_iter_mut().zip(slots.par_iter()).for_each(read);
+        } else {
+            blocks.iter_mut().zip(slots.iter()).for_each(read);
         }
         failed
     }
@@ -710,7 +719,7 @@ impl Jrkf {
             self.fail(self.reps[g]);
             return;
         }
-        if self.packed.works.len() > 1 {
+        if self.packed.sliced() {
             self.update_means_in_slices(s);
             return;
         }
@@ -757,13 +766,14 @@ impl Jrkf {
     /// parallel, each with its own innovation scratch; each agent's arithmetic is the same.
     fn update_means_in_slices(&mut self, s: &Step<'_>) {
         let r = self.runs;
+        let rows = self.x.len() / r;
         let mut rest = self.x.as_mut_slice();
         let mut end = 0;
         let parts: [(&mut [f64], usize, std::ops::Range<usize>); SLICES] =
             std::array::from_fn(|k| {
                 let agents = self.packed.mean_slices[k].clone();
                 let start = end;
-                end = self.agent_rows.get(agents.end).map_or(self.x_rows, |a| a.0);
+                end = self.agent_rows.get(agents.end).map_or(rows, |a| a.0);
                 let (part, tail) = std::mem::take(&mut rest).split_at_mut((end - start) * r);
                 rest = tail;
                 (part, start, agents)
