@@ -102,9 +102,19 @@ fn allocations_do_not_grow_with_steps() {
 }
 
 fn ca_filters_allocate_nothing_per_step() {
-    // rkf-ca and garkf (decoupled axes, shared covariances until the first lost link, then
-    // per run) under random link losses, with the metric edge's PCRB.
+    // rkf-ca and garkf (decoupled axes, covariances shared by classes of runs that split at
+    // lost links, and per run after a geometric observation) under random link losses, and
+    // under departures, with the metric edge's PCRB.
     let pool = started_pool(1);
+    for faults in [
+        "availability = 0.6",
+        "random_departures = { share = 0.25, at = 1.0 }",
+    ] {
+        ca_filters_allocate_nothing_per_step_with(&pool, faults);
+    }
+}
+
+fn ca_filters_allocate_nothing_per_step_with(pool: &rayon::ThreadPool, faults: &str) {
     let count = |steps: usize| {
         let text = format!(
             r#"
@@ -120,7 +130,7 @@ steps = {steps}
 runs = 5
 every = {every}
 [faults]
-availability = 0.6
+{faults}
 [metrics]
 edge = [1, 0]
 "#,
@@ -128,7 +138,7 @@ edge = [1, 0]
         );
         let spec: edgekf::scenario::ScenarioSpec = toml::from_str(&text).unwrap();
         let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
-        allocations(&pool, &sc)
+        allocations(pool, &sc)
     };
     // A first run initialises a process-wide cache once (one allocation); not counted.
     count(200);
@@ -136,6 +146,6 @@ edge = [1, 0]
     let long = count(2000);
     assert_eq!(
         short, long,
-        "allocations: {short} for 200 steps, {long} for 2000 steps"
+        "{faults}: allocations: {short} for 200 steps, {long} for 2000 steps"
     );
 }

@@ -531,9 +531,21 @@ impl<const D: usize> CaBatch<D> {
 
     /// [`Self::predict_cov`] with the caller's scratch.
     pub fn predict_cov_in(&mut self, model: &CaModel<D>, work: &mut CaWork) {
-        let runs = self.runs;
-        for (t, tile) in self.cov.chunks_exact_mut(Self::NP).enumerate() {
-            let w = TILE.min(runs - t * TILE);
+        self.predict_cov_first_in(self.runs, model, work);
+    }
+
+    /// [`Self::predict_cov_in`] of the first `lanes` runs only (the others stay as they are).
+    ///
+    /// # Panics
+    /// If `lanes` exceeds the runs.
+    pub fn predict_cov_first_in(&mut self, lanes: usize, model: &CaModel<D>, work: &mut CaWork) {
+        assert!(lanes <= self.runs, "at most the batch's runs");
+        let tiles = self
+            .cov
+            .chunks_exact_mut(Self::NP)
+            .take(lanes.div_ceil(TILE));
+        for (t, tile) in tiles.enumerate() {
+            let w = TILE.min(lanes - t * TILE);
             predict_tile::<D>(tile, &mut work.out[..Self::NP], model, w);
             for (dst, src) in tile.iter_mut().zip(work.out.iter()) {
                 dst[..w].copy_from_slice(&src[..w]);
@@ -567,7 +579,22 @@ impl<const D: usize> CaBatch<D> {
     /// # Panics
     /// If `r_tilde` or `mask` have the wrong length.
     pub fn correct_cov_in(&mut self, r_tilde: &[f64], mask: &[bool], work: &mut CaWork) {
-        let runs = self.runs;
+        self.correct_cov_first_in(self.runs, r_tilde, mask, work);
+    }
+
+    /// [`Self::correct_cov_in`] of the first `runs` runs only, `r_tilde` and `mask` laid out
+    /// for that many runs (`r_tilde[k · runs + r]`); the others stay as they are.
+    ///
+    /// # Panics
+    /// If `runs` exceeds the batch's runs, or `r_tilde` or `mask` have the wrong length.
+    pub fn correct_cov_first_in(
+        &mut self,
+        runs: usize,
+        r_tilde: &[f64],
+        mask: &[bool],
+        work: &mut CaWork,
+    ) {
+        assert!(runs <= self.runs, "at most the batch's runs");
         assert_eq!(r_tilde.len(), packed_len(D) * runs, "r_tilde length");
         assert_eq!(mask.len(), runs, "mask length");
         let nr = packed_len(D);
@@ -580,7 +607,10 @@ impl<const D: usize> CaBatch<D> {
             gain: wg,
             ..
         } = work;
-        let tiles = self.cov.chunks_exact_mut(Self::NP);
+        let tiles = self
+            .cov
+            .chunks_exact_mut(Self::NP)
+            .take(runs.div_ceil(TILE));
         for (t, (tile, gain)) in tiles.zip(wg.chunks_exact_mut(Self::NK)).enumerate() {
             let r0 = t * TILE;
             let w = TILE.min(runs - r0);
@@ -668,9 +698,26 @@ impl<const D: usize> CaBatch<D> {
         work: &mut CaWork,
         group: usize,
     ) {
+        self.correct_mean_spans_in(y, mask, work, group, 0);
+    }
+
+    /// [`Self::correct_mean_shared_in`] with the gain of run `first + q` of the corrected batch
+    /// for the runs `q·group..(q+1)·group` (a batch of shared covariances whose run `first` is
+    /// the first of this group's).
+    ///
+    /// # Panics
+    /// As [`Self::correct_mean_shared_in`], or if the gains reach past the first tile.
+    pub fn correct_mean_spans_in(
+        &mut self,
+        y: &[f64],
+        mask: &[bool],
+        work: &mut CaWork,
+        group: usize,
+        first: usize,
+    ) {
         let runs = self.runs;
         assert!(
-            group > 0 && runs % group == 0 && runs / group <= TILE,
+            group > 0 && runs % group == 0 && first + runs / group <= TILE,
             "groups of equal size, at most a tile of them"
         );
         assert_eq!(y.len(), D * runs, "y length");
@@ -686,7 +733,7 @@ impl<const D: usize> CaBatch<D> {
                     for a in 0..3 * D {
                         let xa = &mut self.mean[a * runs..(a + 1) * runs][span.clone()];
                         for c in 0..D {
-                            let k = gain[a * D + c][q];
+                            let k = gain[a * D + c][first + q];
                             let v = &innov[c * runs..(c + 1) * runs][span.clone()];
                             for (x, vr) in xa.iter_mut().zip(v) {
                                 *x += k * vr;
@@ -696,6 +743,49 @@ impl<const D: usize> CaBatch<D> {
                 }
             },
         );
+    }
+
+    /// [`Self::correct_mean_in`] of the runs `pairs[j].0` of this batch with the gain of run
+    /// `pairs[j].1` of the last [`Self::correct_cov_first_in`] on `work` (another batch's: the
+    /// runs that keep their own covariance in a compact batch). Each run in one pair at most;
+    /// per run the operations of [`Self::correct_mean_in`], so the same bits.
+    ///
+    /// # Panics
+    /// If `y` has the wrong length or a pair is out of range.
+    pub fn correct_mean_pairs_in(&mut self, y: &[f64], pairs: &[(u32, u32)], work: &CaWork) {
+        let runs = self.runs;
+        assert_eq!(y.len(), D * runs, "y length");
+        for &(r, lane) in pairs {
+            let (r, lane) = (r as usize, lane as usize);
+            let gain = &work.gain[lane / TILE * Self::NK..][..Self::NK];
+            let l = lane % TILE;
+            let mut v = [0.0; D];
+            for (c, vc) in v.iter_mut().enumerate() {
+                *vc = y[c * runs + r] - self.mean[c * runs + r];
+            }
+            for a in 0..3 * D {
+                let x = &mut self.mean[a * runs + r];
+                for (c, vc) in v.iter().enumerate() {
+                    *x += gain[a * D + c][l] * vc;
+                }
+            }
+        }
+    }
+
+    /// Copies the covariance of run `from` of `src` into run `to` of this batch.
+    pub fn copy_cov_from(&mut self, to: usize, src: &CaBatch<D>, from: usize) {
+        let (t, l, ts, ls) = (to / TILE, to % TILE, from / TILE, from % TILE);
+        for k in 0..Self::NP {
+            self.cov[t * Self::NP + k][l] = src.cov[ts * Self::NP + k][ls];
+        }
+    }
+
+    /// Copies the covariance of run `from` into run `to` of this batch.
+    pub fn copy_cov(&mut self, to: usize, from: usize) {
+        let (t, l, ts, ls) = (to / TILE, to % TILE, from / TILE, from % TILE);
+        for k in 0..Self::NP {
+            self.cov[t * Self::NP + k][l] = self.cov[ts * Self::NP + k][ls];
+        }
     }
 
     /// Prediction of covariances and means with the caller's scratch (the means need none).

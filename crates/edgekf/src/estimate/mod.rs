@@ -55,6 +55,7 @@ pub mod ar;
 pub mod batch;
 pub mod batch_aos;
 pub mod ca;
+mod ca_classes;
 pub mod crkf;
 pub mod garkf;
 mod joseph_lanes;

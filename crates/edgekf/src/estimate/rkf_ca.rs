@@ -37,6 +37,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adaptive::{Adapt, AdaptOptions, Adaptation, Assumed, Bank, BlockModel, Obs};
 use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
+use super::ca_classes::{ClassWork, Classes, Kind, Place};
 use super::pcrb::{EdgePcrb, GaPrior, Observation};
 use super::rkf_adaptive::{agent_scale, provides};
 use super::{
@@ -337,8 +338,7 @@ pub(crate) struct AxesBasis<const D: usize> {
     identity: bool,
     /// `u_dᵀ W_e u_d` per edge and axis.
     w: Vec<[f64; D]>,
-    /// Scratch over `D · runs` lanes: mask, `u_dᵀ R̃ u_d` and `Uᵀ ỹ` of one edge.
-    mask: Vec<bool>,
+    /// Scratch over `D · runs` lanes: `u_dᵀ R̃ u_d` and `Uᵀ ỹ` of one edge.
     rt: Vec<f64>,
     yt: Vec<f64>,
 }
@@ -373,9 +373,15 @@ pub(crate) struct CaEdges<const D: usize> {
     owners: Vec<std::ops::Range<usize>>,
     /// One batch per directed edge.
     pub(crate) banks: Vec<CaBank<D>>,
-    /// Per edge, while its covariance is the same in every run: that covariance, as a batch of
-    /// one run (see [`Self::correct`]); the batch in [`Self::banks`] then carries the means only.
-    shared: Vec<Option<CaBank<D>>>,
+    /// Per edge, the covariances its classes of runs share ([`super::ca_classes`]), one run
+    /// per class, in the form of its batch; the batch in [`Self::banks`] carries every run's
+    /// mean and, compactly, the covariances of the runs that have their own.
+    groups: Vec<CaBank<D>>,
+    /// Per edge, its runs' classes.
+    classes: Vec<Classes>,
+    /// Scratch of one edge: how each run observes it, and the classes' scratch.
+    kinds: Vec<Kind>,
+    cw: ClassWork,
     /// The decoupled form's basis and scratch (`None`: the full form).
     axes: Option<AxesBasis<D>>,
     /// `W_e = R_e / T` per edge (packed upper triangle) broadcast over the runs:
@@ -386,11 +392,10 @@ pub(crate) struct CaEdges<const D: usize> {
     /// Position estimates, MD rows × runs.
     pub(crate) x: Vec<f64>,
     /// Scratch of one edge: which runs have a geometric observation, its `R̃` (packed × runs)
-    /// and `ỹ` (D × runs), filled by the caller of [`Self::correct`]; the kernels' mask.
+    /// and `ỹ` (D × runs), filled by the caller of [`Self::correct`].
     pub(crate) geo: Vec<bool>,
     pub(crate) rt: Vec<f64>,
     pub(crate) yt: Vec<f64>,
-    mask: Vec<bool>,
     /// The kernels' scratch, shared by every edge (it stays in cache).
     work: CaWork,
     /// With `adaptive`: every (edge, run) filter with its sensitivities, and the noise scales
@@ -471,7 +476,6 @@ impl<const D: usize> AxesBasis<D> {
                     std::array::from_fn(|d| (u.column(d).transpose() * we * u.column(d))[(0, 0)])
                 })
                 .collect(),
-            mask: vec![false; D * runs],
             rt: vec![1.0; D * runs],
             yt: vec![0.0; D * runs],
         }
@@ -479,6 +483,50 @@ impl<const D: usize> AxesBasis<D> {
 }
 
 impl<const D: usize> AxesBasis<D> {
+    /// The observations of edge `e` in the axes: `u_dᵀ W_e u_d` and `Uᵀ y` for every run (runs
+    /// not observed get values nobody reads), then the geometric ones, `u_dᵀ R̃ u_d` and
+    /// `Uᵀ ỹ` from `(rt, yt)` (packed `R̃` and `ỹ`, runs innermost).
+    fn prepare(
+        &mut self,
+        e: usize,
+        y: &[f64],
+        kinds: &[Kind],
+        (rt, yt): (&[f64], &[f64]),
+        runs: usize,
+    ) {
+        for d in 0..D {
+            let (lo, hi) = (d * runs, (d + 1) * runs);
+            let (rd, yd) = (&mut self.rt[lo..hi], &mut self.yt[lo..hi]);
+            let (wd, u) = (self.w[e][d], self.u.column(d));
+            for r in 0..runs {
+                rd[r] = wd;
+                yd[r] = if self.identity {
+                    y[d * runs + r]
+                } else {
+                    let mut acc = u[0] * y[r];
+                    for a in 1..D {
+                        acc += u[a] * y[a * runs + r];
+                    }
+                    acc
+                };
+            }
+        }
+        for r in (0..runs).filter(|&r| kinds[r] == Kind::GEOMETRIC) {
+            if self.identity {
+                for d in 0..D {
+                    self.rt[d * runs + r] = rt[packed_index(D, d, d) * runs + r];
+                }
+            } else {
+                let rr = SMatrix::<f64, D, D>::from_fn(|a, c| rt[packed_index(D, a, c) * runs + r]);
+                for d in 0..D {
+                    let ud = self.u.column(d);
+                    self.rt[d * runs + r] = (ud.transpose() * rr * ud)[(0, 0)];
+                }
+            }
+            self.rotate_in(yt, r, runs);
+        }
+    }
+
     /// `ỹ' = Uᵀ ỹ` of run `r` (`y`: `D × runs`) into the scratch.
     #[inline]
     fn rotate_in(&mut self, y: &[f64], r: usize, runs: usize) {
@@ -597,12 +645,14 @@ impl<const D: usize> CaEdges<D> {
                     .expect("valid initial covariance"),
             ),
         };
-        let (banks, shared) = if adaptive.is_some() {
-            (Vec::new(), Vec::new())
+        let a = if axes.is_some() { D } else { 1 };
+        let (banks, groups, classes) = if adaptive.is_some() {
+            (Vec::new(), Vec::new(), Vec::new())
         } else {
             (
                 p0.iter().map(|p| bank(p, lanes)).collect(),
-                p0.iter().map(|p| Some(bank(p, 1))).collect(),
+                p0.iter().map(|p| bank(p, Classes::capacity(a))).collect(),
+                vec![Classes::new(runs, a); ne],
             )
         };
         Self {
@@ -612,13 +662,15 @@ impl<const D: usize> CaEdges<D> {
             edges: m.edges().to_vec(),
             owners: m.agent_edges().to_vec(),
             banks,
-            shared,
+            groups,
+            classes,
+            kinds: vec![Kind::NONE; runs],
+            cw: ClassWork::new(runs, a, if a == 1 { np } else { 1 }),
             axes: axes.map(|u| AxesBasis::new(u, &w, runs)),
             w_packed,
             w,
             x: vec![0.0; ne * D * runs],
             geo: vec![false; runs],
-            mask: vec![false; runs],
             rt: vec![0.0; np * runs],
             yt: vec![0.0; D * runs],
             work: CaWork::for_runs(D * lanes, D),
@@ -640,39 +692,30 @@ impl<const D: usize> CaEdges<D> {
             }
             return;
         }
-        let work = &mut self.work;
-        match (&mut self.banks[e], &mut self.shared[e]) {
-            (CaBank::Full(b), None) => b.predict_in(&self.model, work),
-            (CaBank::Axes(b), None) => b.predict_in(&self.axis_model, work),
-            (CaBank::Full(b), Some(CaBank::Full(sb))) => {
-                sb.predict_cov_in(&self.model, work);
+        let (work, cl) = (&mut self.work, &self.classes[e]);
+        match (&mut self.banks[e], &mut self.groups[e]) {
+            (CaBank::Full(b), CaBank::Full(g)) => {
+                cl.predict(g, b, &self.model, work);
                 b.predict_mean(&self.model);
             }
-            (CaBank::Axes(b), Some(CaBank::Axes(sb))) => {
-                sb.predict_cov_in(&self.axis_model, work);
+            (CaBank::Axes(b), CaBank::Axes(g)) => {
+                cl.predict(g, b, &self.axis_model, work);
                 b.predict_mean(&self.axis_model);
             }
-            _ => unreachable!("an edge's shared covariance has the form of its batch"),
+            _ => unreachable!("an edge's classes have the form of its batch"),
         }
     }
 
-    /// Gives every edge its per-run covariances now (what the first step that differs between
-    /// runs does; for tests).
+    /// Gives every run of every edge its own covariance now (per-run filters; for tests).
     #[cfg(test)]
     fn unshare(&mut self) {
         for e in 0..self.banks.len() {
-            match (&mut self.banks[e], self.shared[e].take()) {
-                (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, self.runs),
-                (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, self.runs),
-                _ => {}
+            match (&mut self.banks[e], &self.groups[e]) {
+                (CaBank::Full(b), CaBank::Full(g)) => self.classes[e].unshare(g, b),
+                (CaBank::Axes(b), CaBank::Axes(g)) => self.classes[e].unshare(g, b),
+                _ => unreachable!("an edge's classes have the form of its batch"),
             }
         }
-    }
-
-    /// Edge `e`'s shared covariance, if it still has one: in the form of its batch, one run
-    /// (full form) or one lane per axis (decoupled form).
-    fn shared_cov(&self, e: usize) -> Option<&CaBank<D>> {
-        self.shared[e].as_ref()
     }
 
     /// Correction of edge `e`'s filters, then [`Self::export`]: the runs `observed` with the
@@ -681,105 +724,58 @@ impl<const D: usize> CaEdges<D> {
     /// [`Self::yt`].
     ///
     /// # Shared covariances
-    /// Every run starts from the same covariance, and the covariance recursion does not depend
-    /// on the data: as long as every step of an edge observes it directly in every run (or in
-    /// none), its covariance is the same in every run. Until then the edge keeps one copy
-    /// ([`Self::shared`]), steps it alone and gives its gain to every run's mean — the same
-    /// arithmetic on the same numbers as in each run's lane, so the same bits, without
-    /// streaming a covariance per run through memory (before the departures of Fig. 13 that is
-    /// most of the memory traffic). The first step that differs between runs copies the shared
-    /// covariance into every run.
+    /// The covariance recursion does not read the data: runs observed alike at every step
+    /// share one covariance ([`super::ca_classes`]), stepped once, its gain given to each
+    /// member's mean — the same arithmetic on the same numbers as in each run's lane, so the
+    /// same bits, without streaming a covariance per run through memory. Only the runs observed
+    /// geometrically (each with its own `R̃`) get their own.
     pub(crate) fn correct(&mut self, e: usize, y: &[f64], observed: &[bool]) {
         let runs = self.runs;
         if self.adaptive.is_some() {
             self.correct_adaptive(e, y, observed);
             return;
         }
-        if self.shared[e].is_some() && self.correct_if_shared(e, y, observed) {
-            return;
+        for ((k, &o), &g) in self.kinds.iter_mut().zip(observed).zip(&self.geo) {
+            *k = Kind::of(o, g);
         }
-        match (&mut self.banks[e], &mut self.axes) {
-            (CaBank::Full(b), _) => {
+        let cl = &mut self.classes[e];
+        let (cw, work) = (&mut self.cw, &mut self.work);
+        match (&mut self.banks[e], &mut self.groups[e], &mut self.axes) {
+            (CaBank::Full(b), CaBank::Full(g), _) => {
+                // The runs with their own covariance observed directly read `W_e` and `y` from
+                // the scratch of the geometric ones.
                 let wp = &self.w_packed[e];
-                for r in 0..runs {
-                    self.mask[r] = observed[r] || self.geo[r];
-                    if observed[r] {
-                        for k in 0..packed_len(D) {
-                            self.rt[k * runs + r] = wp[k * runs + r];
-                        }
-                        for a in 0..D {
-                            self.yt[a * runs + r] = y[a * runs + r];
-                        }
-                    }
-                }
-                b.correct_cov_in(&self.rt, &self.mask, &mut self.work);
-                b.correct_mean_in(&self.yt, &self.mask, &mut self.work);
-            }
-            (CaBank::Axes(b), Some(ax)) => {
-                // Direct observations for every run (the lanes run innermost; runs that are not
-                // observed get values the kernels do not read), then the geometric ones.
-                for d in 0..D {
-                    let (lo, hi) = (d * runs, (d + 1) * runs);
-                    let (m, rt, yt) =
-                        (&mut ax.mask[lo..hi], &mut ax.rt[lo..hi], &mut ax.yt[lo..hi]);
-                    let (wd, u) = (ax.w[e][d], ax.u.column(d));
-                    for r in 0..runs {
-                        m[r] = observed[r] || self.geo[r];
-                        rt[r] = wd;
-                        yt[r] = if ax.identity {
-                            y[d * runs + r]
-                        } else {
-                            let mut acc = u[0] * y[r];
-                            for a in 1..D {
-                                acc += u[a] * y[a * runs + r];
+                if !cl.all_shared() {
+                    for r in (0..runs).filter(|&r| observed[r]) {
+                        if let Place::Own(_) = cl.place(r) {
+                            for k in 0..packed_len(D) {
+                                self.rt[k * runs + r] = wp[k * runs + r];
                             }
-                            acc
-                        };
-                    }
-                }
-                for r in 0..runs {
-                    if observed[r] || !self.geo[r] {
-                        continue;
-                    }
-                    if ax.identity {
-                        for d in 0..D {
-                            ax.rt[d * runs + r] = self.rt[packed_index(D, d, d) * runs + r];
-                        }
-                    } else {
-                        let rr = SMatrix::<f64, D, D>::from_fn(|a, c| {
-                            self.rt[packed_index(D, a, c) * runs + r]
-                        });
-                        for d in 0..D {
-                            let ud = ax.u.column(d);
-                            ax.rt[d * runs + r] = (ud.transpose() * rr * ud)[(0, 0)];
+                            for a in 0..D {
+                                self.yt[a * runs + r] = y[a * runs + r];
+                            }
                         }
                     }
-                    ax.rotate_in(&self.yt, r, runs);
                 }
-                b.correct_cov_in(&ax.rt, &ax.mask, &mut self.work);
-                b.correct_mean_in(&ax.yt, &ax.mask, &mut self.work);
+                let mut w = [0.0; 6];
+                for (k, v) in w.iter_mut().take(packed_len(D)).enumerate() {
+                    *v = wp[k * runs];
+                }
+                let w = &w[..packed_len(D)];
+                cl.correct(g, b, &self.kinds, (&self.rt, &self.yt, y), w, cw, work);
             }
-            (CaBank::Axes(_), None) => unreachable!("the decoupled form has its basis"),
+            (CaBank::Axes(b), CaBank::Axes(g), Some(ax)) => {
+                if self.kinds.iter().any(|&k| k != Kind::NONE) {
+                    ax.prepare(e, y, &self.kinds, (&self.rt, &self.yt), runs);
+                }
+                let w = ax.w[e];
+                let AxesBasis { rt, yt, .. } = ax;
+                cl.correct(g, b, &self.kinds, (rt, yt, yt), &w, cw, work);
+            }
+            (CaBank::Axes(..), _, None) => unreachable!("the decoupled form has its basis"),
+            _ => unreachable!("an edge's classes have the form of its batch"),
         }
         self.export(e);
-    }
-
-    /// With edge `e`'s covariance still shared: corrects it in shared form when every run
-    /// observes it directly or none observes it at all (`true`), or else broadcasts the shared
-    /// covariance into every run (`false`: the caller corrects per run).
-    fn correct_if_shared(&mut self, e: usize, y: &[f64], observed: &[bool]) -> bool {
-        let all = observed.iter().all(|&o| o);
-        let none = !all && !observed.iter().any(|&o| o) && !self.geo.iter().any(|&g| g);
-        if all || none {
-            self.correct_shared(e, y, all);
-            return true;
-        }
-        match (&mut self.banks[e], self.shared[e].take()) {
-            (CaBank::Full(b), Some(CaBank::Full(sb))) => b.broadcast_from(&sb, self.runs),
-            (CaBank::Axes(b), Some(CaBank::Axes(sb))) => b.broadcast_from(&sb, self.runs),
-            _ => unreachable!("an edge's shared covariance has the form of its batch"),
-        }
-        false
     }
 
     /// [`Self::correct`] in the adaptive form: the direct measurement (it enters the
@@ -820,39 +816,6 @@ impl<const D: usize> CaEdges<D> {
         if let Some(ad) = &mut self.adaptive {
             ad.bank.end_step(ad.owners.clone());
         }
-    }
-
-    /// [`Self::correct`] of an edge whose covariance is shared, at a step that observes it
-    /// directly in every run (`all`) or in none.
-    fn correct_shared(&mut self, e: usize, y: &[f64], all: bool) {
-        let runs = self.runs;
-        let work = &mut self.work;
-        match (&mut self.banks[e], &mut self.shared[e], &mut self.axes) {
-            (CaBank::Full(b), Some(CaBank::Full(sb)), _) => {
-                let we = self.w[e];
-                let mut r1 = [0.0; 6];
-                for a in 0..D {
-                    for c in a..D {
-                        r1[packed_index(D, a, c)] = we[(a, c)];
-                    }
-                }
-                sb.correct_cov_in(&r1[..packed_len(D)], &[all], work);
-                self.mask.fill(all);
-                b.correct_mean_shared_in(y, &self.mask, work, runs);
-            }
-            (CaBank::Axes(b), Some(CaBank::Axes(sb)), Some(ax)) => {
-                sb.correct_cov_in(&ax.w[e], &[all; D], work);
-                ax.mask.fill(all);
-                if all {
-                    for r in 0..runs {
-                        ax.rotate_in(y, r, runs);
-                    }
-                }
-                b.correct_mean_shared_in(&ax.yt, &ax.mask, work, runs);
-            }
-            _ => unreachable!("an edge's shared covariance has the form of its batch"),
-        }
-        self.export(e);
     }
 
     /// Copies the position block of edge `e`'s means into [`Self::x`] (rotated back to the
@@ -907,11 +870,20 @@ impl<const D: usize> CaEdges<D> {
             let (_, p) = ad.bank.state(e, r);
             return p[d * 3 * D + d];
         }
-        match (&self.banks[e], self.shared_cov(e)) {
-            (_, Some(CaBank::Full(sb))) => sb.cov_entry(packed_index(3 * D, d, d), 0),
-            (_, Some(CaBank::Axes(sb))) => sb.cov_entry(0, d),
-            (CaBank::Full(b), None) => b.cov_entry(packed_index(3 * D, d, d), r),
-            (CaBank::Axes(b), None) => b.cov_entry(0, d * self.runs + r),
+        match self.cov_run(e, r) {
+            (CaBank::Full(b), run) => b.cov_entry(packed_index(3 * D, d, d), run),
+            (CaBank::Axes(b), run) => b.cov_entry(0, run * D + d),
+        }
+    }
+
+    /// The batch holding run `r`'s covariance of edge `e` and the run there (its class's, or
+    /// its own place among the compact own covariances; `D` lanes per run in the decoupled
+    /// form).
+    #[inline]
+    fn cov_run(&self, e: usize, r: usize) -> (&CaBank<D>, usize) {
+        match self.classes[e].place(r) {
+            Place::Class(c) => (&self.groups[e], c),
+            Place::Own(l) => (&self.banks[e], l),
         }
     }
 
@@ -942,15 +914,7 @@ impl<const D: usize> CaEdges<D> {
             let (_, p) = ad.bank.state(e, r);
             return DMatrix::from_row_slice(3 * D, 3 * D, p);
         }
-        let (bank, r) = match self.shared_cov(e) {
-            Some(sb) => (sb, 0),
-            None => (&self.banks[e], r),
-        };
-        let runs = if self.shared_cov(e).is_some() {
-            1
-        } else {
-            self.runs
-        };
+        let (bank, r) = self.cov_run(e, r);
         match (bank, &self.axes) {
             (CaBank::Full(b), _) => b.covariance(r),
             (CaBank::Axes(b), Some(ax)) => {
@@ -964,7 +928,7 @@ impl<const D: usize> CaEdges<D> {
                 });
                 let inner = DMatrix::from_fn(n, n, |a, c| {
                     if a % D == c % D {
-                        b.covariance(a % D * runs + r)[(a / D, c / D)]
+                        b.covariance(r * D + a % D)[(a / D, c / D)]
                     } else {
                         0.0
                     }
@@ -1277,10 +1241,28 @@ mod tests {
         (dc, dx)
     }
 
-    /// A shared covariance gives the bits of per-run covariances: 150 steps observed in every
-    /// run (or in none), then steps with random losses, both forms.
+    /// How run `r` of edge `e` observes it at step `k` of [`classes_give_the_bits_of_per_run_filters`]:
+    /// alike in every run (150 steps), then a departure (each run a fixed role: direct, none or
+    /// geometric, as after Fig. 13's departures), then random losses and geometric observations.
+    fn observation(k: usize, e: usize, r: usize, rng: &mut Xoshiro256PlusPlus) -> Kind {
+        match k {
+            0..50 | 60..150 => Kind::DIRECT,
+            50..60 => Kind::NONE,
+            150..200 => [Kind::DIRECT, Kind::NONE, Kind::GEOMETRIC][(r * 7 + e) % 3],
+            _ => match rng.random::<f64>() {
+                u if u < 0.5 => Kind::DIRECT,
+                u if u < 0.997 => Kind::NONE,
+                _ => Kind::GEOMETRIC,
+            },
+        }
+    }
+
+    /// Classes of runs give the bits of per-run filters (every run with its own covariance from
+    /// the start), both forms: 150 steps observed alike, a departure's three roles (two
+    /// classes and the geometric runs), then random losses that split the classes until the
+    /// class batch is full.
     #[test]
-    fn shared_covariances_give_the_bits_of_per_run_ones() {
+    fn classes_give_the_bits_of_per_run_filters() {
         for axes_ok in [true, false] {
             let m = model(0.3);
             let runs = 67; // two tiles, the second partly used
@@ -1288,39 +1270,60 @@ mod tests {
             let mut per_run = shared.clone();
             per_run.unshare();
             assert_eq!(shared.decoupled(), axes_ok);
-            assert!(shared.shared.iter().all(Option::is_some));
-            assert!(per_run.shared.iter().all(Option::is_none));
+            assert!(per_run.classes.iter().all(Classes::none_shared));
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
             let ne = shared.edges.len();
             for k in 0..300 {
                 for e in 0..ne {
-                    let observed: Vec<bool> = match k {
-                        0..50 => vec![true; runs],
-                        50..60 => vec![false; runs],
-                        60..150 => vec![true; runs],
-                        _ => (0..runs).map(|_| rng.random_bool(0.5)).collect(),
-                    };
+                    let kinds: Vec<Kind> =
+                        (0..runs).map(|r| observation(k, e, r, &mut rng)).collect();
+                    let observed: Vec<bool> = kinds.iter().map(|&k| k == Kind::DIRECT).collect();
                     let y: Vec<f64> = (0..2 * runs).map(|_| rng.random_range(-1.0..1.0)).collect();
+                    // A geometric R̃ = c W_e + ψ I (diagonal in the axes of W_e, as GA-RKF's).
+                    let (c, psi) = (rng.random_range(0.5..3.0), rng.random_range(0.0..0.2));
+                    let we = shared.w[e];
+                    let yg: Vec<f64> = (0..2 * runs).map(|_| rng.random_range(-1.0..1.0)).collect();
                     for edges in [&mut shared, &mut per_run] {
                         edges.predict(e);
+                        for r in 0..runs {
+                            edges.geo[r] = kinds[r] == Kind::GEOMETRIC;
+                            for a in 0..2 {
+                                edges.yt[a * runs + r] = yg[a * runs + r];
+                                for b in a..2 {
+                                    let v = c * we[(a, b)] + if a == b { psi } else { 0.0 };
+                                    edges.rt[packed_index(2, a, b) * runs + r] = v;
+                                }
+                            }
+                        }
                         edges.correct(e, &y, &observed);
                     }
                 }
                 if k == 149 {
-                    assert!(shared.shared.iter().all(Option::is_some), "still shared");
+                    assert!(shared.classes.iter().all(Classes::all_shared), "one class");
+                }
+                if k == 199 {
+                    for (e, cl) in shared.classes.iter().enumerate() {
+                        let geometric = (0..runs).filter(|r| (r * 7 + e) % 3 == 2).count();
+                        assert_eq!(cl.own_runs(), geometric, "only the geometric runs own one");
+                    }
                 }
             }
             assert!(
-                shared.shared.iter().all(Option::is_none),
-                "per run after the losses"
+                shared
+                    .classes
+                    .iter()
+                    .all(|c| c.own_runs() > 0 && !c.none_shared()),
+                "classes and own covariances after the losses"
             );
             for e in 0..ne {
                 for r in 0..runs {
                     let (a, b) = (shared.covariance(e, r), per_run.covariance(e, r));
-                    assert!(a
-                        .iter()
-                        .zip(b.iter())
-                        .all(|(x, y)| x.to_bits() == y.to_bits()));
+                    assert!(
+                        a.iter()
+                            .zip(b.iter())
+                            .all(|(x, y)| x.to_bits() == y.to_bits()),
+                        "edge {e}, run {r}: covariances differ"
+                    );
                 }
             }
             assert!(shared

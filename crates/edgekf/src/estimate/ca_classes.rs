@@ -1,0 +1,402 @@
+//! The covariances of one edge's CA filters ([`super::ca`]) kept by class of runs: runs whose
+//! observations of the edge have been alike at every step share one covariance.
+//!
+//! The covariance recursion of a Kalman filter does not read the data: `Λ⁻ = F Λ Fᵀ + Q` and
+//! the Joseph correction with `R̃` depend on which steps observed the edge and with which `R̃`,
+//! not on the measurements. Every run starts from the same `Λ_0`, so two runs that were
+//! observed directly (with `W_e`) at the same steps, and not observed at the others, carry the
+//! same covariance, bit for bit. [`Classes`] keeps one covariance per such class — a run of
+//! the edge's batch of shared covariances, one tile of lanes — and gives its gain to each
+//! member's mean; a run observed geometrically (eq. 8, with its own `R̃`, Li & Rajan eq. 10)
+//! gets a covariance of its own from then on, a lane of the edge's batch in compact order
+//! (only those lanes are stepped). Before the departures of Li & Rajan's Fig. 13 every edge is
+//! one class; after them an edge's runs fall in at most three: the runs that still observe it
+//! directly, the runs whose owner departed (never observed since), and the runs with a
+//! geometric observation — only the last need a covariance each.
+//!
+//! Each run's covariance is stepped by the same kernels with the same operations as if it had
+//! its own lane from the start (the kernels act lane by lane), so the results are the bits of
+//! per-run filters (`rkf_ca`'s test `classes_give_the_bits_of_per_run_filters`).
+//!
+//! Lanes: a run is `a` lanes (`a = 1` for the full `3D × 3D` filter, `a = D` for the decoupled
+//! axes); lane `d` of run `r` is `d · runs + r` in the means (the batch layout), `g · a + d` in
+//! the class batch and `l · a + d` among the own covariances (`l` the run's place in
+//! [`Classes::solo`]).
+
+use super::ca::{packed_len, CaBatch, CaModel, CaWork, TILE};
+
+/// How a run observes an edge at one step ([`Kind::NONE`], [`Kind::DIRECT`],
+/// [`Kind::GEOMETRIC`]): a byte, so that a step's kinds compute without branches and compare
+/// with the last step's as memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(transparent)]
+pub(crate) struct Kind(u8);
+
+impl Kind {
+    /// Not at all: prediction only.
+    pub(crate) const NONE: Kind = Kind(0);
+    /// Directly, with the edge's `W_e`.
+    pub(crate) const DIRECT: Kind = Kind(1);
+    /// Geometrically, with its own `R̃`.
+    pub(crate) const GEOMETRIC: Kind = Kind(2);
+    /// Not a kind: the last step's kinds before the first step.
+    const UNSET: Kind = Kind(u8::MAX);
+
+    /// Direct when `observed`, else geometric when `geometric`, else none.
+    #[inline(always)]
+    pub(crate) fn of(observed: bool, geometric: bool) -> Kind {
+        Kind(u8::from(observed) | (u8::from(!observed & geometric) << 1))
+    }
+}
+
+/// Marks a run with its own covariance in [`Classes::of`] (the low bits its place in `solo`).
+const OWN: u32 = 1 << 31;
+
+/// A class of at least `runs / SPAN_SHARE` members corrects its means in a pass over every run.
+const SPAN_SHARE: usize = 8;
+
+/// No member of the class moves (in [`ClassWork::target`]).
+const KEEP: u32 = u32::MAX;
+
+/// Where a run's covariance is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Place {
+    /// Run `.0` of the class batch (times `a` lanes).
+    Class(usize),
+    /// Run `.0` of the compact own covariances of the edge's batch.
+    Own(usize),
+}
+
+/// The classes of one edge's runs.
+#[derive(Debug, Clone)]
+pub(crate) struct Classes {
+    runs: usize,
+    /// Lanes per run.
+    a: usize,
+    /// Members per class slot (0: free).
+    count: Vec<u32>,
+    /// How the members of each class observed the edge at the current step.
+    kind: Vec<Kind>,
+    /// Slots in use: `0..slots` (some may be free).
+    slots: usize,
+    /// Per run: its class slot, or [`OWN`] | its place in `solo`.
+    of: Vec<u32>,
+    /// The runs with their own covariance, in lane order.
+    solo: Vec<u32>,
+    /// The kinds of the last step: after its regrouping every class was of one kind, so a
+    /// step of the same kinds has nothing to regroup.
+    last: Vec<Kind>,
+}
+
+/// Scratch of [`Classes::correct`], one for every edge.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ClassWork {
+    direct: Vec<u32>,
+    none: Vec<u32>,
+    /// Per class, where its members not observed go ([`KEEP`]: nowhere, [`OWN`]: their own).
+    target: Vec<u32>,
+    rt: Vec<f64>,
+    mask: Vec<bool>,
+    pairs: Vec<(u32, u32)>,
+}
+
+impl ClassWork {
+    /// Scratch for batches of `runs` runs of `a` lanes each, `np` packed entries per lane.
+    pub(crate) fn new(runs: usize, a: usize, np: usize) -> Self {
+        let lanes = (runs * a).max(TILE);
+        Self {
+            direct: vec![0; TILE],
+            none: vec![0; TILE],
+            target: vec![KEEP; TILE],
+            rt: vec![0.0; np * lanes],
+            mask: vec![false; lanes],
+            pairs: Vec::with_capacity(lanes),
+        }
+    }
+}
+
+impl Classes {
+    /// Class slots of a batch of `a` lanes per run: one tile.
+    pub(crate) fn capacity(a: usize) -> usize {
+        TILE / a
+    }
+
+    /// Every one of `runs` runs in one class (slot 0).
+    pub(crate) fn new(runs: usize, a: usize) -> Self {
+        let cap = Self::capacity(a);
+        let mut count = vec![0; cap];
+        count[0] = runs as u32;
+        Self {
+            runs,
+            a,
+            count,
+            kind: vec![Kind::NONE; cap],
+            slots: 1,
+            of: vec![0; runs],
+            solo: Vec::with_capacity(runs),
+            last: vec![Kind::UNSET; runs],
+        }
+    }
+
+    /// Where run `r`'s covariance is.
+    #[inline]
+    pub(crate) fn place(&self, r: usize) -> Place {
+        let c = self.of[r];
+        if c & OWN == 0 {
+            Place::Class(c as usize)
+        } else {
+            Place::Own((c & !OWN) as usize)
+        }
+    }
+
+    /// Whether no run has a covariance of its own.
+    pub(crate) fn all_shared(&self) -> bool {
+        self.solo.is_empty()
+    }
+
+    /// How many runs have a covariance of their own.
+    #[cfg(test)]
+    pub(crate) fn own_runs(&self) -> usize {
+        self.solo.len()
+    }
+
+    /// Whether every run has a covariance of its own.
+    #[cfg(test)]
+    pub(crate) fn none_shared(&self) -> bool {
+        self.solo.len() == self.runs
+    }
+
+    /// `Λ ← F Λ Fᵀ + Q` of the classes' and the own covariances (`groups` the class batch,
+    /// `bank` the edge's batch; its means are predicted by the caller).
+    pub(crate) fn predict<const DD: usize>(
+        &self,
+        groups: &mut CaBatch<DD>,
+        bank: &mut CaBatch<DD>,
+        model: &CaModel<DD>,
+        work: &mut CaWork,
+    ) {
+        if self.solo.len() < self.runs {
+            groups.predict_cov_first_in(self.slots * self.a, model, work);
+        }
+        if !self.solo.is_empty() {
+            bank.predict_cov_first_in(self.solo.len() * self.a, model, work);
+        }
+    }
+
+    /// The correction of one step: run `r` observed as `kinds[r]`; `rt` (packed `R̃`, `np ×
+    /// a·runs`) and `y_own` (`DD × a·runs`) in the batch layout, read for the observed runs
+    /// with their own covariance, `y` for the others observed (directly); `w` the packed
+    /// `W_e` of each of the `a` lanes of a run (`a × np`).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn correct<const DD: usize>(
+        &mut self,
+        groups: &mut CaBatch<DD>,
+        bank: &mut CaBatch<DD>,
+        kinds: &[Kind],
+        (rt, y_own, y): (&[f64], &[f64], &[f64]),
+        w: &[f64],
+        cw: &mut ClassWork,
+        work: &mut CaWork,
+    ) {
+        self.regroup::<DD>(groups, bank, kinds, cw);
+        self.correct_classes::<DD>(groups, bank, y, w, cw, work);
+        self.correct_own::<DD>(bank, kinds, (rt, y_own), cw, work);
+    }
+
+    /// Moves the runs observed geometrically to covariances of their own, and splits each
+    /// class whose members were observed in two ways (the members not observed to a free
+    /// slot, or to covariances of their own when the class batch is full). Two passes over the
+    /// runs and one over the classes.
+    fn regroup<const DD: usize>(
+        &mut self,
+        groups: &mut CaBatch<DD>,
+        bank: &mut CaBatch<DD>,
+        kinds: &[Kind],
+        cw: &mut ClassWork,
+    ) {
+        if kinds == &self.last[..] {
+            return;
+        }
+        self.last.copy_from_slice(kinds);
+        let slots = self.slots;
+        cw.direct[..slots].fill(0);
+        cw.none[..slots].fill(0);
+        for (r, &k) in kinds.iter().enumerate() {
+            let c = self.of[r];
+            if c & OWN != 0 {
+                continue;
+            }
+            let c = c as usize;
+            match k {
+                Kind::GEOMETRIC => self.make_own(r, groups, c, bank),
+                Kind::DIRECT => cw.direct[c] += 1,
+                _ => cw.none[c] += 1,
+            }
+        }
+        let mut split = false;
+        let mut free = 0;
+        for g in 0..slots {
+            cw.target[g] = KEEP;
+            self.kind[g] = if cw.direct[g] > 0 {
+                Kind::DIRECT
+            } else {
+                Kind::NONE
+            };
+            if cw.direct[g] == 0 || cw.none[g] == 0 {
+                continue;
+            }
+            split = true;
+            while free < self.count.len() && self.count[free] != 0 {
+                free += 1;
+            }
+            if free == self.count.len() {
+                cw.target[g] = OWN;
+                continue;
+            }
+            let s = free;
+            self.slots = self.slots.max(s + 1);
+            self.kind[s] = Kind::NONE;
+            self.count[s] = cw.none[g];
+            self.count[g] -= cw.none[g];
+            cw.target[g] = s as u32;
+            for d in 0..self.a {
+                groups.copy_cov(s * self.a + d, g * self.a + d);
+            }
+        }
+        if !split {
+            return;
+        }
+        for (r, &k) in kinds.iter().enumerate() {
+            let c = self.of[r];
+            if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
+                continue;
+            }
+            match cw.target[c as usize] {
+                OWN => self.make_own(r, groups, c as usize, bank),
+                s => self.of[r] = s,
+            }
+        }
+    }
+
+    /// Gives run `r` of class `c` a covariance of its own (a copy of the class's).
+    fn make_own<const DD: usize>(
+        &mut self,
+        r: usize,
+        groups: &CaBatch<DD>,
+        c: usize,
+        bank: &mut CaBatch<DD>,
+    ) {
+        let l = self.solo.len();
+        self.solo.push(r as u32);
+        for d in 0..self.a {
+            bank.copy_cov_from(l * self.a + d, groups, c * self.a + d);
+        }
+        self.count[c] -= 1;
+        self.of[r] = OWN | l as u32;
+    }
+
+    /// The classes observed directly: their covariances with `W_e`, each member's mean with
+    /// its class's gain.
+    fn correct_classes<const DD: usize>(
+        &mut self,
+        groups: &mut CaBatch<DD>,
+        bank: &mut CaBatch<DD>,
+        y: &[f64],
+        w: &[f64],
+        cw: &mut ClassWork,
+        work: &mut CaWork,
+    ) {
+        let (a, runs, np) = (self.a, self.runs, packed_len(DD));
+        let live = |g: usize| self.count[g] > 0 && self.kind[g] == Kind::DIRECT;
+        if !(0..self.slots).any(live) {
+            return;
+        }
+        let lanes = self.slots * a;
+        for g in 0..self.slots {
+            for d in 0..a {
+                let lane = g * a + d;
+                cw.mask[lane] = live(g);
+                for k in 0..np {
+                    cw.rt[k * lanes + lane] = w[d * np + k];
+                }
+            }
+        }
+        groups.correct_cov_first_in(lanes, &cw.rt[..np * lanes], &cw.mask[..lanes], work);
+        // A large class corrects its members in one vectorised pass over the runs (the others
+        // add `K · 0`); the small ones go member by member.
+        let large = |g: usize| self.count[g] as usize * SPAN_SHARE >= runs;
+        cw.pairs.clear();
+        if (0..self.slots).any(|g| live(g) && !large(g)) {
+            for r in 0..runs {
+                let g = self.of[r];
+                if g & OWN == 0 && live(g as usize) && !large(g as usize) {
+                    for d in 0..a {
+                        cw.pairs
+                            .push(((d * runs + r) as u32, (g as usize * a + d) as u32));
+                    }
+                }
+            }
+            bank.correct_mean_pairs_in(y, &cw.pairs, work);
+        }
+        let mask = &mut cw.mask[..a * runs];
+        for g in (0..self.slots).filter(|&g| live(g) && large(g)) {
+            for r in 0..runs {
+                mask[r] = self.of[r] == g as u32;
+            }
+            for d in 1..a {
+                mask.copy_within(0..runs, d * runs);
+            }
+            bank.correct_mean_spans_in(y, mask, work, runs, g * a);
+        }
+    }
+
+    /// The runs with their own covariance that were observed: each with its `R̃`.
+    fn correct_own<const DD: usize>(
+        &mut self,
+        bank: &mut CaBatch<DD>,
+        kinds: &[Kind],
+        (rt, y): (&[f64], &[f64]),
+        cw: &mut ClassWork,
+        work: &mut CaWork,
+    ) {
+        let (a, runs, np) = (self.a, self.runs, packed_len(DD));
+        let lanes = self.solo.len() * a;
+        if lanes == 0 {
+            return;
+        }
+        cw.pairs.clear();
+        for (l, &r) in self.solo.iter().enumerate() {
+            let r = r as usize;
+            let seen = kinds[r] != Kind::NONE;
+            for d in 0..a {
+                let (lane, main) = (l * a + d, d * runs + r);
+                cw.mask[lane] = seen;
+                if seen {
+                    for k in 0..np {
+                        cw.rt[k * lanes + lane] = rt[k * a * runs + main];
+                    }
+                    cw.pairs.push((main as u32, lane as u32));
+                }
+            }
+        }
+        if cw.pairs.is_empty() {
+            return;
+        }
+        bank.correct_cov_first_in(lanes, &cw.rt[..np * lanes], &cw.mask[..lanes], work);
+        bank.correct_mean_pairs_in(y, &cw.pairs, work);
+    }
+
+    /// Gives every run a covariance of its own now (for tests: per-run filters).
+    #[cfg(test)]
+    pub(crate) fn unshare<const DD: usize>(
+        &mut self,
+        groups: &CaBatch<DD>,
+        bank: &mut CaBatch<DD>,
+    ) {
+        for r in 0..self.runs {
+            if let Place::Class(c) = self.place(r) {
+                self.make_own(r, groups, c, bank);
+            }
+        }
+    }
+}
