@@ -686,7 +686,7 @@ impl<const D: usize> CaBatch<D> {
     /// `runs / group` runs (a covariance shared by groups of runs) whose run `q` gives its gain
     /// to the runs `q·group..(q+1)·group` of this batch: the arithmetic of
     /// [`Self::correct_mean_in`] with those gains copied into every run, the same bits, without
-    /// writing them out per run (`rkf_ca`'s test `shared_covariances_give_the_bits_of_per_run_ones`).
+    /// writing them out per run (`rkf_ca`'s test `classes_give_the_bits_of_per_run_filters`).
     ///
     /// # Panics
     /// If `y` or `mask` have the wrong length, or `group` does not divide the runs into at most
@@ -777,6 +777,37 @@ impl<const D: usize> CaBatch<D> {
         let (t, l, ts, ls) = (to / TILE, to % TILE, from / TILE, from % TILE);
         for k in 0..Self::NP {
             self.cov[t * Self::NP + k][l] = src.cov[ts * Self::NP + k][ls];
+        }
+    }
+
+    /// Moves the covariance of run `l` to run `to(l)`, for the runs `0..n` (`to` a permutation
+    /// of them), in place; `visited` is scratch of at least `n` entries.
+    pub fn permute_cov(&mut self, n: usize, to: impl Fn(usize) -> usize, visited: &mut [bool]) {
+        visited[..n].fill(false);
+        let mut carry = [0.0; MAXP];
+        let mut held = [0.0; MAXP];
+        for start in 0..n {
+            if visited[start] {
+                continue;
+            }
+            for (k, c) in carry.iter_mut().enumerate().take(Self::NP) {
+                *c = self.cov_entry(k, start);
+            }
+            let mut cur = start;
+            loop {
+                visited[cur] = true;
+                let dst = to(cur);
+                let (t, l) = (dst / TILE, dst % TILE);
+                for k in 0..Self::NP {
+                    held[k] = self.cov[t * Self::NP + k][l];
+                    self.cov[t * Self::NP + k][l] = carry[k];
+                }
+                std::mem::swap(&mut carry, &mut held);
+                cur = dst;
+                if cur == start {
+                    break;
+                }
+            }
         }
     }
 

@@ -58,14 +58,19 @@ const SPAN_SHARE: usize = 8;
 /// No member of the class moves (in [`ClassWork::target`]).
 const KEEP: u32 = u32::MAX;
 
-/// Where a run's covariance is.
+/// Where a run's covariance is: lane `d` of it is lane `first + d · stride` of the class batch
+/// (`class`) or of the edge's batch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Place {
-    /// Run `.0` of the class batch (times `a` lanes).
-    Class(usize),
-    /// Run `.0` of the compact own covariances of the edge's batch.
-    Own(usize),
+pub(crate) struct Place {
+    pub(crate) class: bool,
+    pub(crate) first: usize,
+    pub(crate) stride: usize,
 }
+
+/// Classes an edge keeps at most: a class that would split beyond them gives its members not
+/// observed covariances of their own (when the observations differ run by run, as with random
+/// link losses, every run soon has its own, and the edge steps them as one batch).
+const MAX_CLASSES: usize = 8;
 
 /// The classes of one edge's runs.
 #[derive(Debug, Clone)]
@@ -86,6 +91,9 @@ pub(crate) struct Classes {
     /// The kinds of the last step: after its regrouping every class was of one kind, so a
     /// step of the same kinds has nothing to regroup.
     last: Vec<Kind>,
+    /// Every run has its own covariance, laid out as the batch's runs (lane `d · runs + r`):
+    /// the edge steps as per-run filters, with no classes to keep.
+    per_run: bool,
 }
 
 /// Scratch of [`Classes::correct`], one for every edge.
@@ -135,18 +143,39 @@ impl Classes {
             of: vec![0; runs],
             solo: Vec::with_capacity(runs),
             last: vec![Kind::UNSET; runs],
+            per_run: false,
         }
     }
 
     /// Where run `r`'s covariance is.
     #[inline]
     pub(crate) fn place(&self, r: usize) -> Place {
-        let c = self.of[r];
-        if c & OWN == 0 {
-            Place::Class(c as usize)
+        let (c, a) = (self.of[r], self.a);
+        if self.per_run {
+            Place {
+                class: false,
+                first: r,
+                stride: self.runs,
+            }
+        } else if c & OWN == 0 {
+            Place {
+                class: true,
+                first: c as usize * a,
+                stride: 1,
+            }
         } else {
-            Place::Own((c & !OWN) as usize)
+            Place {
+                class: false,
+                first: (c & !OWN) as usize * a,
+                stride: 1,
+            }
         }
+    }
+
+    /// Whether run `r` has a covariance of its own.
+    #[inline]
+    pub(crate) fn is_own(&self, r: usize) -> bool {
+        self.per_run || self.of[r] & OWN != 0
     }
 
     /// Whether no run has a covariance of its own.
@@ -175,6 +204,10 @@ impl Classes {
         model: &CaModel<DD>,
         work: &mut CaWork,
     ) {
+        if self.per_run {
+            bank.predict_cov_in(model, work);
+            return;
+        }
         if self.solo.len() < self.runs {
             groups.predict_cov_first_in(self.slots * self.a, model, work);
         }
@@ -183,7 +216,8 @@ impl Classes {
         }
     }
 
-    /// The correction of one step: run `r` observed as `kinds[r]`; `rt` (packed `R̃`, `np ×
+    /// The correction of one step, after [`Self::regroup`] with the same kinds: run `r`
+    /// observed as `kinds[r]`; `rt` (packed `R̃`, `np ×
     /// a·runs`) and `y_own` (`DD × a·runs`) in the batch layout, read for the observed runs
     /// with their own covariance, `y` for the others observed (directly); `w` the packed
     /// `W_e` of each of the `a` lanes of a run (`a × np`).
@@ -198,23 +232,51 @@ impl Classes {
         cw: &mut ClassWork,
         work: &mut CaWork,
     ) {
-        self.regroup::<DD>(groups, bank, kinds, cw);
+        if self.per_run {
+            let (a, runs) = (self.a, self.runs);
+            let mask = &mut cw.mask[..a * runs];
+            for (m, &k) in mask.iter_mut().zip(kinds) {
+                *m = k != Kind::NONE;
+            }
+            for d in 1..a {
+                mask.copy_within(0..runs, d * runs);
+            }
+            bank.correct_cov_in(rt, mask, work);
+            bank.correct_mean_in(y_own, mask, work);
+            return;
+        }
         self.correct_classes::<DD>(groups, bank, y, w, cw, work);
         self.correct_own::<DD>(bank, kinds, (rt, y_own), cw, work);
+        if self.solo.len() == self.runs {
+            self.lay_out_per_run(bank, &mut cw.mask);
+        }
     }
 
-    /// Moves the runs observed geometrically to covariances of their own, and splits each
+    /// Every run has its own covariance: lays them out as the batch's runs (lane `l·a + d` of
+    /// run `solo[l]` to lane `d · runs + solo[l]`), and the edge steps as per-run filters.
+    fn lay_out_per_run<const DD: usize>(&mut self, bank: &mut CaBatch<DD>, visited: &mut [bool]) {
+        let (a, runs, solo) = (self.a, self.runs, &self.solo);
+        bank.permute_cov(
+            a * runs,
+            |lane| lane % a * runs + solo[lane / a] as usize,
+            visited,
+        );
+        self.per_run = true;
+    }
+
+    /// The classes of one step, before [`Self::correct`]: moves the runs observed
+    /// geometrically to covariances of their own, and splits each
     /// class whose members were observed in two ways (the members not observed to a free
     /// slot, or to covariances of their own when the class batch is full). Two passes over the
     /// runs and one over the classes.
-    fn regroup<const DD: usize>(
+    pub(crate) fn regroup<const DD: usize>(
         &mut self,
         groups: &mut CaBatch<DD>,
         bank: &mut CaBatch<DD>,
         kinds: &[Kind],
         cw: &mut ClassWork,
     ) {
-        if kinds == &self.last[..] {
+        if self.per_run || kinds == &self.last[..] {
             return;
         }
         self.last.copy_from_slice(kinds);
@@ -249,7 +311,8 @@ impl Classes {
             while free < self.count.len() && self.count[free] != 0 {
                 free += 1;
             }
-            if free == self.count.len() {
+            let live = self.count[..self.slots].iter().filter(|&&c| c > 0).count();
+            if free == self.count.len() || live >= MAX_CLASSES {
                 cw.target[g] = OWN;
                 continue;
             }
@@ -263,17 +326,25 @@ impl Classes {
                 groups.copy_cov(s * self.a + d, g * self.a + d);
             }
         }
-        if !split {
-            return;
-        }
-        for (r, &k) in kinds.iter().enumerate() {
-            let c = self.of[r];
-            if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
-                continue;
+        if split {
+            for (r, &k) in kinds.iter().enumerate() {
+                let c = self.of[r];
+                if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
+                    continue;
+                }
+                match cw.target[c as usize] {
+                    OWN => self.make_own(r, groups, c as usize, bank),
+                    s => self.of[r] = s,
+                }
             }
-            match cw.target[c as usize] {
-                OWN => self.make_own(r, groups, c as usize, bank),
-                s => self.of[r] = s,
+        }
+        // A class of one run shares nothing: its run takes its own covariance.
+        if self.count[..self.slots].contains(&1) {
+            for r in 0..self.runs {
+                let c = self.of[r];
+                if c & OWN == 0 && self.count[c as usize] == 1 {
+                    self.make_own(r, groups, c as usize, bank);
+                }
             }
         }
     }
@@ -394,9 +465,10 @@ impl Classes {
         bank: &mut CaBatch<DD>,
     ) {
         for r in 0..self.runs {
-            if let Place::Class(c) = self.place(r) {
-                self.make_own(r, groups, c, bank);
+            if !self.is_own(r) {
+                self.make_own(r, groups, self.of[r] as usize, bank);
             }
         }
+        self.lay_out_per_run(bank, &mut vec![false; self.a * self.runs]);
     }
 }

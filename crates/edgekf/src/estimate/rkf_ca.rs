@@ -742,12 +742,13 @@ impl<const D: usize> CaEdges<D> {
         let (cw, work) = (&mut self.cw, &mut self.work);
         match (&mut self.banks[e], &mut self.groups[e], &mut self.axes) {
             (CaBank::Full(b), CaBank::Full(g), _) => {
+                cl.regroup(g, b, &self.kinds, cw);
                 // The runs with their own covariance observed directly read `W_e` and `y` from
                 // the scratch of the geometric ones.
                 let wp = &self.w_packed[e];
                 if !cl.all_shared() {
                     for r in (0..runs).filter(|&r| observed[r]) {
-                        if let Place::Own(_) = cl.place(r) {
+                        if cl.is_own(r) {
                             for k in 0..packed_len(D) {
                                 self.rt[k * runs + r] = wp[k * runs + r];
                             }
@@ -765,6 +766,7 @@ impl<const D: usize> CaEdges<D> {
                 cl.correct(g, b, &self.kinds, (&self.rt, &self.yt, y), w, cw, work);
             }
             (CaBank::Axes(b), CaBank::Axes(g), Some(ax)) => {
+                cl.regroup(g, b, &self.kinds, cw);
                 if self.kinds.iter().any(|&k| k != Kind::NONE) {
                     ax.prepare(e, y, &self.kinds, (&self.rt, &self.yt), runs);
                 }
@@ -871,20 +873,24 @@ impl<const D: usize> CaEdges<D> {
             return p[d * 3 * D + d];
         }
         match self.cov_run(e, r) {
-            (CaBank::Full(b), run) => b.cov_entry(packed_index(3 * D, d, d), run),
-            (CaBank::Axes(b), run) => b.cov_entry(0, run * D + d),
+            (CaBank::Full(b), p) => b.cov_entry(packed_index(3 * D, d, d), p.first),
+            (CaBank::Axes(b), p) => b.cov_entry(0, p.first + d * p.stride),
         }
     }
 
-    /// The batch holding run `r`'s covariance of edge `e` and the run there (its class's, or
-    /// its own place among the compact own covariances; `D` lanes per run in the decoupled
-    /// form).
+    /// The batch holding run `r`'s covariance of edge `e` (its class's, or its own) and where
+    /// in it (one lane per run in the full form, D in the decoupled one).
     #[inline]
-    fn cov_run(&self, e: usize, r: usize) -> (&CaBank<D>, usize) {
-        match self.classes[e].place(r) {
-            Place::Class(c) => (&self.groups[e], c),
-            Place::Own(l) => (&self.banks[e], l),
-        }
+    fn cov_run(&self, e: usize, r: usize) -> (&CaBank<D>, Place) {
+        let p = self.classes[e].place(r);
+        (
+            if p.class {
+                &self.groups[e]
+            } else {
+                &self.banks[e]
+            },
+            p,
+        )
     }
 
     /// Agent `i`'s part of `cov_trace` in run `r`: the position-block traces summed over its
@@ -914,9 +920,9 @@ impl<const D: usize> CaEdges<D> {
             let (_, p) = ad.bank.state(e, r);
             return DMatrix::from_row_slice(3 * D, 3 * D, p);
         }
-        let (bank, r) = self.cov_run(e, r);
+        let (bank, p) = self.cov_run(e, r);
         match (bank, &self.axes) {
-            (CaBank::Full(b), _) => b.covariance(r),
+            (CaBank::Full(b), _) => b.covariance(p.first),
             (CaBank::Axes(b), Some(ax)) => {
                 let n = 3 * D;
                 let rot = DMatrix::from_fn(n, n, |a, c| {
@@ -928,7 +934,7 @@ impl<const D: usize> CaEdges<D> {
                 });
                 let inner = DMatrix::from_fn(n, n, |a, c| {
                     if a % D == c % D {
-                        b.covariance(r * D + a % D)[(a / D, c / D)]
+                        b.covariance(p.first + a % D * p.stride)[(a / D, c / D)]
                     } else {
                         0.0
                     }
@@ -1259,8 +1265,8 @@ mod tests {
 
     /// Classes of runs give the bits of per-run filters (every run with its own covariance from
     /// the start), both forms: 150 steps observed alike, a departure's three roles (two
-    /// classes and the geometric runs), then random losses that split the classes until the
-    /// class batch is full.
+    /// classes and the geometric runs), then random losses that split the classes until every
+    /// run has its own covariance and the edge steps per run.
     #[test]
     fn classes_give_the_bits_of_per_run_filters() {
         for axes_ok in [true, false] {
@@ -1307,31 +1313,42 @@ mod tests {
                         assert_eq!(cl.own_runs(), geometric, "only the geometric runs own one");
                     }
                 }
-            }
-            assert!(
-                shared
-                    .classes
-                    .iter()
-                    .all(|c| c.own_runs() > 0 && !c.none_shared()),
-                "classes and own covariances after the losses"
-            );
-            for e in 0..ne {
-                for r in 0..runs {
-                    let (a, b) = (shared.covariance(e, r), per_run.covariance(e, r));
+                if k == 201 {
                     assert!(
-                        a.iter()
-                            .zip(b.iter())
-                            .all(|(x, y)| x.to_bits() == y.to_bits()),
-                        "edge {e}, run {r}: covariances differ"
+                        shared.classes.iter().all(|c| !c.none_shared()),
+                        "classes split, not yet per run"
                     );
                 }
+                if [149, 199, 201, 299].contains(&k) {
+                    assert_same_bits(&shared, &per_run, k);
+                }
             }
-            assert!(shared
-                .x
-                .iter()
-                .zip(&per_run.x)
-                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert!(
+                shared.classes.iter().all(Classes::none_shared),
+                "per run after the random losses (beyond the classes an edge keeps)"
+            );
         }
+    }
+
+    /// Every covariance and estimate of `a` has the bits of `b`'s.
+    fn assert_same_bits(a: &CaEdges<2>, b: &CaEdges<2>, k: usize) {
+        for e in 0..a.edges.len() {
+            for r in 0..a.runs {
+                let (x, y) = (a.covariance(e, r), b.covariance(e, r));
+                assert!(
+                    x.iter()
+                        .zip(y.iter())
+                        .all(|(u, v)| u.to_bits() == v.to_bits()),
+                    "step {k}, edge {e}, run {r}: covariances differ"
+                );
+            }
+        }
+        assert!(
+            a.x.iter()
+                .zip(&b.x)
+                .all(|(u, v)| u.to_bits() == v.to_bits()),
+            "step {k}: estimates differ"
+        );
     }
 
     #[test]
