@@ -265,10 +265,10 @@ impl Classes {
     }
 
     /// The classes of one step, before [`Self::correct`]: moves the runs observed
-    /// geometrically to covariances of their own, and splits each
-    /// class whose members were observed in two ways (the members not observed to a free
-    /// slot, or to covariances of their own when the class batch is full). Two passes over the
-    /// runs and one over the classes.
+    /// geometrically to covariances of their own, splits each class whose members were
+    /// observed in two ways (the members not observed to a free slot, or to covariances of
+    /// their own beyond [`MAX_CLASSES`]), and gives the run of a class of one its own. Nothing
+    /// to do at a step of the last step's kinds.
     pub(crate) fn regroup<const DD: usize>(
         &mut self,
         groups: &mut CaBatch<DD>,
@@ -295,6 +295,39 @@ impl Classes {
                 _ => cw.none[c] += 1,
             }
         }
+        if self.plan_splits(groups, slots, cw) {
+            for (r, &k) in kinds.iter().enumerate() {
+                let c = self.of[r];
+                if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
+                    continue;
+                }
+                match cw.target[c as usize] {
+                    OWN => self.make_own(r, groups, c as usize, bank),
+                    s => self.of[r] = s,
+                }
+            }
+        }
+        // A class of one run shares nothing: its run takes its own covariance.
+        if self.count[..self.slots].contains(&1) {
+            for r in 0..self.runs {
+                let c = self.of[r];
+                if c & OWN == 0 && self.count[c as usize] == 1 {
+                    self.make_own(r, groups, c as usize, bank);
+                }
+            }
+        }
+    }
+
+    /// Each class's kind from its members' counts (`cw.direct`, `cw.none`), and where the
+    /// members not observed of a class observed both ways go (`cw.target`): a free slot, given
+    /// a copy of the class's covariance and their count, or their own covariances. Whether
+    /// any class splits.
+    fn plan_splits<const DD: usize>(
+        &mut self,
+        groups: &mut CaBatch<DD>,
+        slots: usize,
+        cw: &mut ClassWork,
+    ) -> bool {
         let mut split = false;
         let mut free = 0;
         for g in 0..slots {
@@ -326,27 +359,7 @@ impl Classes {
                 groups.copy_cov(s * self.a + d, g * self.a + d);
             }
         }
-        if split {
-            for (r, &k) in kinds.iter().enumerate() {
-                let c = self.of[r];
-                if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
-                    continue;
-                }
-                match cw.target[c as usize] {
-                    OWN => self.make_own(r, groups, c as usize, bank),
-                    s => self.of[r] = s,
-                }
-            }
-        }
-        // A class of one run shares nothing: its run takes its own covariance.
-        if self.count[..self.slots].contains(&1) {
-            for r in 0..self.runs {
-                let c = self.of[r];
-                if c & OWN == 0 && self.count[c as usize] == 1 {
-                    self.make_own(r, groups, c as usize, bank);
-                }
-            }
-        }
+        split
     }
 
     /// Gives run `r` of class `c` a covariance of its own (a copy of the class's).
