@@ -137,6 +137,18 @@ impl Faults {
         self.present[i * self.runs + r]
     }
 
+    /// Per run, whether agent `i` is present.
+    #[inline]
+    pub fn present_row(&self, i: usize) -> &[bool] {
+        &self.present[i * self.runs..(i + 1) * self.runs]
+    }
+
+    /// Per run, whether edge `e` is tracked ([`Self::tracked`]).
+    #[inline]
+    pub fn tracked_row(&self, e: usize) -> &[bool] {
+        self.present_row(self.edges[e].0)
+    }
+
     /// Whether edge `e` is tracked in run `r`: its measuring agent is present.
     #[inline]
     pub fn tracked(&self, e: usize, r: usize) -> bool {

@@ -73,18 +73,33 @@ impl Metric for EstErrorSq {
         let x = m.step.truth;
         let faults = m.step.faults;
         let me = m.framework.graph().num_edges();
-        for (r, o) in out.iter_mut().enumerate() {
-            let mut s = 0.0;
-            for e in 0..me {
-                if faults.measurement_faults() && !faults.tracked(e, r) {
-                    continue;
-                }
-                for a in e * d..(e + 1) * d {
-                    let v = x[a * runs + r] - xh[a * runs + r];
-                    s += v * v;
+        // Each run's sum over the edges in order, the runs innermost (contiguous rows); an
+        // untracked edge adds +0, which leaves a sum of squares as it is.
+        out.fill(0.0);
+        for e in 0..me {
+            let tracked = faults.measurement_faults().then(|| faults.tracked_row(e));
+            for a in e * d..(e + 1) * d {
+                let (xa, ha) = (&x[a * runs..(a + 1) * runs], &xh[a * runs..(a + 1) * runs]);
+                match tracked {
+                    Some(t) => {
+                        for (((o, &xr), &hr), &keep) in out.iter_mut().zip(xa).zip(ha).zip(t) {
+                            let v = xr - hr;
+                            *o += if keep { v * v } else { 0.0 };
+                        }
+                    }
+                    None => {
+                        for ((o, &xr), &hr) in out.iter_mut().zip(xa).zip(ha) {
+                            let v = xr - hr;
+                            *o += v * v;
+                        }
+                    }
                 }
             }
-            *o = if self.root { s.sqrt() } else { s };
+        }
+        if self.root {
+            for o in out.iter_mut() {
+                *o = o.sqrt();
+            }
         }
     }
 }
