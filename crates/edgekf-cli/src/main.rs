@@ -405,7 +405,7 @@ fn run(
             sweep: Some(&sw),
             ..Default::default()
         };
-        stage_outputs(&mut st, &sc, &sw.base, None, &extra)?;
+        pool.install(|| stage_outputs(&mut st, &sc, &sw.base, None, &extra))?;
         commit(st, prep, &id)?;
         eprintln!(
             "wrote {} (a sweep of {} values)",
@@ -430,7 +430,7 @@ fn run(
         );
         return Ok(ExitCode::SUCCESS);
     }
-    stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default())?;
+    pool.install(|| stage_outputs(&mut st, &sc, &res, None, &plot_garkf::Extra::default()))?;
     commit(st, prep, &id)?;
     eprintln!("wrote {}", out.display());
     Ok(report(&sc, &res, over))
@@ -845,7 +845,7 @@ fn reproduce(
             companions: companions(&mine, &files, &done),
         };
         let mut st = interrupt::stage(&dir)?;
-        stage_outputs(&mut st, sc, &res, Some(&plots), &extra)?;
+        pool.install(|| stage_outputs(&mut st, sc, &res, Some(&plots), &extra))?;
         let prep = prepared[k]
             .take()
             .context("each simulation is prepared once")?;

@@ -57,7 +57,8 @@ pub use ticks::Tick;
 /// Draws the figures of a study — every plot of the scenario, or those whose file stem is in
 /// `only` — each to `path_of("STEM.png")` (the CLI and the Python package stage them in a
 /// temporary directory). GA-RKF panels, sweep summaries and the indicator figure go to
-/// [`plot_garkf`] (with `extra`: a sweep's results, a companion run), the rest to [`plot`].
+/// [`plot_garkf`] (with `extra`: a sweep's results, a companion run), the rest to [`plot`]; the
+/// figures are drawn in parallel on the caller's rayon pool.
 ///
 /// # Errors
 /// [`StudyFigureError`] when a figure cannot be written, or a GA-RKF figure lacks the data it
@@ -69,17 +70,26 @@ pub fn render_study(
     only: Option<&[&str]>,
     extra: &plot_garkf::Extra<'_>,
 ) -> Result<(), StudyFigureError> {
-    for p in sc.plots() {
-        if only.is_none_or(|want| want.contains(&p.file())) {
-            let path = path_of(&format!("{}.png", p.file()));
+    use rayon::prelude::*;
+    let wanted: Vec<_> = sc
+        .plots()
+        .iter()
+        .filter(|p| only.is_none_or(|want| want.contains(&p.file())))
+        .map(|p| (p, path_of(&format!("{}.png", p.file()))))
+        .collect();
+    // Each figure is drawn and encoded by itself, so they are drawn in parallel (on the
+    // caller's rayon pool); the first error in the scenario's order is the one returned.
+    let drawn: Vec<Result<(), StudyFigureError>> = wanted
+        .par_iter()
+        .map(|(p, path)| {
             if plot_garkf::handles(p) {
-                plot_garkf::render(&path, p, sc, res, extra)?;
+                plot_garkf::render(path, p, sc, res, extra)
             } else {
-                plot::render(&path, p, sc, res)?;
+                plot::render(path, p, sc, res)
             }
-        }
-    }
-    Ok(())
+        })
+        .collect();
+    drawn.into_iter().collect()
 }
 
 /// Errors of writing a figure.
