@@ -478,26 +478,6 @@ impl<const D: usize> CaBatch<D> {
         DMatrix::from_fn(n, n, |a, b| self.cov_entry(packed_index(n, a, b), r))
     }
 
-    /// Sets every run's covariance to that of run `r / group` of `src` (a batch of
-    /// `self.runs() / group` runs whose runs stand for groups of `group` runs here).
-    ///
-    /// # Panics
-    /// If `src` has fewer than `self.runs().div_ceil(group)` runs.
-    pub fn broadcast_from(&mut self, src: &CaBatch<D>, group: usize) {
-        assert!(
-            src.runs >= self.runs.div_ceil(group),
-            "src has a run per group"
-        );
-        for r in 0..self.runs {
-            let (t, l) = (r / TILE, r % TILE);
-            let g = r / group;
-            let (ts, ls) = (g / TILE, g % TILE);
-            for k in 0..Self::NP {
-                self.cov[t * Self::NP + k][l] = src.cov[ts * Self::NP + k][ls];
-            }
-        }
-    }
-
     /// Sets the covariance of run `r` from a dense symmetric matrix (upper triangle used).
     pub fn set_covariance(&mut self, r: usize, m: &DMatrix<f64>) {
         let n = 3 * D;
@@ -682,31 +662,15 @@ impl<const D: usize> CaBatch<D> {
         );
     }
 
-    /// [`Self::correct_mean_in`] after a [`Self::correct_cov_in`] on `work` of a batch of
-    /// `runs / group` runs (a covariance shared by groups of runs) whose run `q` gives its gain
-    /// to the runs `q·group..(q+1)·group` of this batch: the arithmetic of
+    /// [`Self::correct_mean_in`] after a [`Self::correct_cov_in`] on `work` of a batch of shared
+    /// covariances (one per group of `group` runs here): the runs `q·group..(q+1)·group` of this
+    /// batch take the gain of run `first + q` of the corrected batch. The arithmetic of
     /// [`Self::correct_mean_in`] with those gains copied into every run, the same bits, without
     /// writing them out per run (`rkf_ca`'s test `classes_give_the_bits_of_per_run_filters`).
     ///
     /// # Panics
-    /// If `y` or `mask` have the wrong length, or `group` does not divide the runs into at most
-    /// [`TILE`] groups.
-    pub fn correct_mean_shared_in(
-        &mut self,
-        y: &[f64],
-        mask: &[bool],
-        work: &mut CaWork,
-        group: usize,
-    ) {
-        self.correct_mean_spans_in(y, mask, work, group, 0);
-    }
-
-    /// [`Self::correct_mean_shared_in`] with the gain of run `first + q` of the corrected batch
-    /// for the runs `q·group..(q+1)·group` (a batch of shared covariances whose run `first` is
-    /// the first of this group's).
-    ///
-    /// # Panics
-    /// As [`Self::correct_mean_shared_in`], or if the gains reach past the first tile.
+    /// If `y` or `mask` have the wrong length, `group` does not divide the runs, or the gains
+    /// reach past the first tile.
     pub fn correct_mean_spans_in(
         &mut self,
         y: &[f64],

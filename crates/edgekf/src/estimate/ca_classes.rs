@@ -55,8 +55,16 @@ const OWN: u32 = 1 << 31;
 /// A class of at least `runs / SPAN_SHARE` members corrects its means in a pass over every run.
 const SPAN_SHARE: usize = 8;
 
-/// No member of the class moves (in [`ClassWork::target`]).
-const KEEP: u32 = u32::MAX;
+/// Where the members not observed of a class go when the class splits ([`ClassWork::target`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Move {
+    /// Nowhere: the class does not split.
+    Keep,
+    /// Each to a covariance of its own.
+    Own,
+    /// To this class slot.
+    To(u32),
+}
 
 /// Where a run's covariance is: lane `d` of it is lane `first + d · stride` of the class batch
 /// (`class`) or of the edge's batch.
@@ -101,8 +109,8 @@ pub(crate) struct Classes {
 pub(crate) struct ClassWork {
     direct: Vec<u32>,
     none: Vec<u32>,
-    /// Per class, where its members not observed go ([`KEEP`]: nowhere, [`OWN`]: their own).
-    target: Vec<u32>,
+    /// Per class, where its members not observed go.
+    target: Vec<Move>,
     rt: Vec<f64>,
     mask: Vec<bool>,
     pairs: Vec<(u32, u32)>,
@@ -115,7 +123,7 @@ impl ClassWork {
         Self {
             direct: vec![0; TILE],
             none: vec![0; TILE],
-            target: vec![KEEP; TILE],
+            target: vec![Move::Keep; TILE],
             rt: vec![0.0; np * lanes],
             mask: vec![false; lanes],
             pairs: Vec::with_capacity(lanes),
@@ -298,12 +306,13 @@ impl Classes {
         if self.plan_splits(groups, slots, cw) {
             for (r, &k) in kinds.iter().enumerate() {
                 let c = self.of[r];
-                if k != Kind::NONE || c & OWN != 0 || cw.target[c as usize] == KEEP {
+                if k != Kind::NONE || c & OWN != 0 {
                     continue;
                 }
                 match cw.target[c as usize] {
-                    OWN => self.make_own(r, groups, c as usize, bank),
-                    s => self.of[r] = s,
+                    Move::Keep => {}
+                    Move::Own => self.make_own(r, groups, c as usize, bank),
+                    Move::To(s) => self.of[r] = s,
                 }
             }
         }
@@ -331,7 +340,7 @@ impl Classes {
         let mut split = false;
         let mut free = 0;
         for g in 0..slots {
-            cw.target[g] = KEEP;
+            cw.target[g] = Move::Keep;
             self.kind[g] = if cw.direct[g] > 0 {
                 Kind::DIRECT
             } else {
@@ -346,7 +355,7 @@ impl Classes {
             }
             let live = self.count[..self.slots].iter().filter(|&&c| c > 0).count();
             if free == self.count.len() || live >= MAX_CLASSES {
-                cw.target[g] = OWN;
+                cw.target[g] = Move::Own;
                 continue;
             }
             let s = free;
@@ -354,7 +363,7 @@ impl Classes {
             self.kind[s] = Kind::NONE;
             self.count[s] = cw.none[g];
             self.count[g] -= cw.none[g];
-            cw.target[g] = s as u32;
+            cw.target[g] = Move::To(s as u32);
             for d in 0..self.a {
                 groups.copy_cov(s * self.a + d, g * self.a + d);
             }

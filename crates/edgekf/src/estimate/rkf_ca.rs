@@ -583,6 +583,52 @@ fn common_axes<const D: usize>(w: &[SMatrix<f64, D, D>]) -> Option<SMatrix<f64, 
         .then_some(u)
 }
 
+/// The basis of the decoupled form when every edge's initial covariance is isotropic and one
+/// basis diagonalises the `W_e` of the whole formation ([`common_axes`]; an agent's own filters
+/// take the same basis as the formation's, so their arithmetic is the same).
+fn decoupling_axes<const D: usize>(
+    m: &Model,
+    samples: usize,
+    p0: &[DMatrix<f64>],
+) -> Option<SMatrix<f64, D, D>> {
+    if !p0.iter().all(is_isotropic) {
+        return None;
+    }
+    let w_all: Vec<SMatrix<f64, D, D>> = m
+        .formation_r()
+        .iter()
+        .map(|r| to_static::<D>(&(r / samples as f64)))
+        .collect();
+    common_axes(&w_all)
+}
+
+/// Per edge: the bank of its `runs` filters, the bank of its classes' covariances, and its
+/// classes, every covariance started at `blockdiag(2P, I, I)` (per axis in the decoupled form,
+/// `axes`).
+fn edge_banks<const D: usize>(
+    p0: &[DMatrix<f64>],
+    axes: bool,
+    runs: usize,
+) -> (Vec<CaBank<D>>, Vec<CaBank<D>>, Vec<Classes>) {
+    let bank = |p: &DMatrix<f64>, lanes: usize| {
+        if axes {
+            let cov3 = initial_covariance::<1>(&DMatrix::from_element(1, 1, p[(0, 0)]));
+            CaBank::Axes(CaBatch::<1>::new(D * lanes, &cov3, &[0.0; 3]).expect("valid"))
+        } else {
+            CaBank::Full(
+                CaBatch::<D>::new(lanes, &initial_covariance::<D>(p), &vec![0.0; 3 * D])
+                    .expect("valid initial covariance"),
+            )
+        }
+    };
+    let a = if axes { D } else { 1 };
+    (
+        p0.iter().map(|p| bank(p, runs)).collect(),
+        p0.iter().map(|p| bank(p, Classes::capacity(a))).collect(),
+        vec![Classes::new(runs, a); p0.len()],
+    )
+}
+
 impl<const D: usize> CaEdges<D> {
     /// The filters of every edge of `m`, started at `γ̂_0 = 0`, `Λ_0 = blockdiag(2P, I, I)`.
     /// `axes_ok`: every `R̃` the caller will pass is diagonal in the basis of the `W_e` (then
@@ -606,7 +652,6 @@ impl<const D: usize> CaEdges<D> {
         let sigma_w = noise.sigma_w;
         let model = CaModel::<D>::new(m.dt(), sigma_w).expect("checked by the kind");
         let ne = m.num_edges();
-        let n = 3 * D;
         let w: Vec<SMatrix<f64, D, D>> = m
             .mean_cov(samples)
             .iter()
@@ -622,38 +667,16 @@ impl<const D: usize> CaEdges<D> {
         let np = packed_len(D);
         let w_packed = w.iter().map(|we| packed_lanes(we, runs)).collect();
         let p0: Vec<DMatrix<f64>> = (0..ne).map(|e| m.edge_p0(e, e)).collect();
-        // The basis common to every edge of the formation (an agent's own filters take the
-        // same basis as the whole formation's, so their arithmetic is the same).
-        let w_all: Vec<SMatrix<f64, D, D>> = m
-            .formation_r()
-            .iter()
-            .map(|r| to_static::<D>(&(r / samples as f64)))
-            .collect();
-        let axes = if adaptive.is_none() && axes_ok && p0.iter().all(is_isotropic) {
-            common_axes(&w_all)
+        let axes = if adaptive.is_none() && axes_ok {
+            decoupling_axes::<D>(m, samples, &p0)
         } else {
             None
-        };
-        // `lanes` runs of the form, every run from the same covariance.
-        let bank = |p: &DMatrix<f64>, lanes: usize| match axes {
-            Some(_) => {
-                let cov3 = initial_covariance::<1>(&DMatrix::from_element(1, 1, p[(0, 0)]));
-                CaBank::Axes(CaBatch::<1>::new(D * lanes, &cov3, &[0.0; 3]).expect("valid"))
-            }
-            None => CaBank::Full(
-                CaBatch::<D>::new(lanes, &initial_covariance::<D>(p), &vec![0.0; n])
-                    .expect("valid initial covariance"),
-            ),
         };
         let a = if axes.is_some() { D } else { 1 };
         let (banks, groups, classes) = if adaptive.is_some() {
             (Vec::new(), Vec::new(), Vec::new())
         } else {
-            (
-                p0.iter().map(|p| bank(p, lanes)).collect(),
-                p0.iter().map(|p| bank(p, Classes::capacity(a))).collect(),
-                vec![Classes::new(runs, a); ne],
-            )
+            edge_banks::<D>(&p0, axes.is_some(), runs)
         };
         Self {
             model,
