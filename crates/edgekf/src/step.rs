@@ -197,6 +197,36 @@ pub struct Target {
     pub velocities: Vec<f64>,
 }
 
+/// Which of a [`Step`]'s derived fields an estimator reads ([`crate::estimate::Estimator::reads`]),
+/// so that the simulation forms only those: every step's `y`, `u_prev`, `faults` and `target`
+/// are always there; `du` and `truth` only when read (and `truth` at a report, for the
+/// metrics). A field not read holds stale values or NaN.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reads {
+    /// [`Step::du`], the prediction increments.
+    pub increments: bool,
+    /// [`Step::truth`], the true edges.
+    pub truth: bool,
+}
+
+impl Reads {
+    /// Every field (the default: an estimator that does not say reads everything).
+    pub const ALL: Reads = Reads {
+        increments: true,
+        truth: true,
+    };
+    /// The measurement means and the inputs only.
+    pub const MEANS: Reads = Reads {
+        increments: false,
+        truth: false,
+    };
+    /// The means, the inputs and the prediction increments.
+    pub const INCREMENTS: Reads = Reads {
+        increments: true,
+        truth: false,
+    };
+}
+
 /// Everything an estimator may read at step `k`: the outputs of the stages that run before
 /// estimation (world → faults → sensing). Batches have runs innermost.
 #[derive(Debug, Clone, Copy)]
@@ -214,7 +244,8 @@ pub struct Step<'a> {
     pub du: &'a [f64],
     /// Measurement and message availability, agents present.
     pub faults: &'a Faults,
-    /// The true edge states `x_k` (MD rows). Only the `oracle` reads them.
+    /// The true edge states `x_k` (MD rows). Only the `oracle` reads them; formed for an
+    /// estimator whose [`Reads::truth`] is set, and at a report for the metrics.
     pub truth: &'a [f64],
     /// The target formation at step k, if the scenario has one.
     pub target: Option<&'a Target>,

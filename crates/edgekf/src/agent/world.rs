@@ -12,7 +12,7 @@
 use super::messages::{LaneSensing, Output, Report, Sensing};
 use super::reported_quantities;
 use crate::control::pin_leaders;
-use crate::estimate::{AgentStat, Estimator};
+use crate::estimate::{AgentStat, Estimator, Reads};
 use crate::scenario::{Feedback, Scenario};
 use crate::sim::divergence::{self, Stop};
 use crate::sim::lane::{measure, At, Context};
@@ -153,6 +153,7 @@ impl<'a> World<'a> {
                 &lane.z,
                 &lane.u,
                 noise,
+                Reads::ALL,
                 self.cx.d,
                 self.cx.dt,
                 1,

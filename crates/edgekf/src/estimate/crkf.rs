@@ -32,7 +32,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{
     parse_options, Breakdown, Configured, Consistency, Cost, Estimator, EstimatorKind, Model,
-    Options, Step,
+    Options, Reads, Step,
 };
 use crate::linalg::{
     batch_gemv, batch_gemv_acc, converged, invert_spd, to_row_major, trace_of_product_sym,
@@ -328,6 +328,9 @@ fn add_edge_information(j: &mut DMatrix<f64>, (a, b): (usize, usize), d: usize, 
 }
 
 impl Estimator for Crkf {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
             return;

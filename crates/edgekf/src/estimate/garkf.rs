@@ -100,7 +100,7 @@ use super::rkf_ca::{
 };
 use super::{
     cov_trace_of_agents, options_of, parse_options, quantity_of_agents, Configured, Cost,
-    Estimator, EstimatorKind, Exchange, Model, Options, Step,
+    Estimator, EstimatorKind, Exchange, Model, Options, Reads, Step,
 };
 use crate::linalg::with_avx2;
 
@@ -933,6 +933,9 @@ impl<const D: usize> Exchange for Garkf<D> {
 }
 
 impl<const D: usize> Estimator for Garkf<D> {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         self.prepare(s);
         self.finish(s);

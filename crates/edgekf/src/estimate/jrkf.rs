@@ -46,7 +46,7 @@ use super::rkf::NoiseOptions;
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, options_of, parse_options, Breakdown, Configured, Cost,
-    Estimator, EstimatorKind, Model, Options, Step,
+    Estimator, EstimatorKind, Model, Options, Reads, Step,
 };
 use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
 
@@ -867,6 +867,9 @@ impl Jrkf {
 }
 
 impl Estimator for Jrkf {
+    fn reads(&self) -> Reads {
+        Reads::INCREMENTS
+    }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
             return;

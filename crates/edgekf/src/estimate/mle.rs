@@ -21,7 +21,7 @@ use nalgebra::DMatrix;
 
 use super::{
     cov_trace_of_agents, edge_trace_sum, parse_options, Configured, Consistency, Cost, Estimator,
-    EstimatorKind, Model, Options, Step,
+    EstimatorKind, Model, Options, Reads, Step,
 };
 
 /// `kind = "none"`: one raw sample per step.
@@ -123,6 +123,9 @@ impl Mle {
 }
 
 impl Estimator for Mle {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         self.x.copy_from_slice(s.y);
         if s.faults.measurement_faults() {

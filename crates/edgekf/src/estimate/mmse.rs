@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{
     cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_dynamic, to_static,
-    Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Reads, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -132,6 +132,9 @@ impl<const D: usize> Mmse<D> {
 }
 
 impl<const D: usize> Estimator for Mmse<D> {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         let r = self.runs;
         let block = D * r;

@@ -48,7 +48,9 @@
 //! symmetric PSD covariances, and (where it says it is [`Consistency::Exact`]) a mean squared
 //! error equal to its `cov_trace`. For that, give [`EstimatorKind::example_options`] when an
 //! option is required, [`Estimator::covariances`] when it has a covariance, and
-//! [`Configured::consistency`].
+//! [`Configured::consistency`]. Say in [`Estimator::reads`] whether it reads the prediction
+//! increments or the true edges: the simulation forms only those (the tests' debug build fills
+//! what is not formed with NaN, so a wrong answer fails them).
 
 pub mod adaptive;
 pub mod ar;
@@ -78,7 +80,7 @@ use nalgebra::{DMatrix, SMatrix};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-pub use crate::step::{Faults, Step, Target};
+pub use crate::step::{Faults, Reads, Step, Target};
 
 pub use ar::ArModel;
 pub(crate) use model::ModelParts;
@@ -114,6 +116,11 @@ pub trait Estimator: Send {
     /// A numerical breakdown, if one happened (then the engine stops this estimator).
     fn breakdown(&self) -> Option<&Breakdown> {
         None
+    }
+    /// Which of [`Step::du`] and [`Step::truth`] [`Estimator::step`] reads (default: both), so
+    /// that the simulation forms only those (a field not read holds stale values or NaN).
+    fn reads(&self) -> Reads {
+        Reads::ALL
     }
     /// Agent `i`'s part of [`Estimator::cov_trace`] in run `r`: the summed trace (from 0.0, in
     /// edge order) of the posterior covariances of the tracked edges agent `i` owns; `None`

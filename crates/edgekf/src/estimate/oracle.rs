@@ -6,7 +6,8 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::{
-    parse_options, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    parse_options, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Reads,
+    Step,
 };
 
 /// `kind = "oracle"`.
@@ -69,6 +70,12 @@ pub struct Oracle {
 }
 
 impl Estimator for Oracle {
+    fn reads(&self) -> Reads {
+        Reads {
+            increments: false,
+            truth: true,
+        }
+    }
     fn step(&mut self, s: &Step<'_>) {
         self.x.copy_from_slice(s.truth);
     }

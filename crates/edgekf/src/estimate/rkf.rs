@@ -50,7 +50,7 @@ use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static,
-    Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Reads, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -683,6 +683,9 @@ fn ar_increment_of<const D: usize>(
 }
 
 impl<const D: usize> Estimator for Rkf<D> {
+    fn reads(&self) -> Reads {
+        Reads::INCREMENTS
+    }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
             return;

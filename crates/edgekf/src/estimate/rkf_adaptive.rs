@@ -17,7 +17,7 @@
 use std::ops::Range;
 
 use super::adaptive::{Adaptation, Assumed, Bank, BlockModel, Obs};
-use super::{cov_trace_of_agents, quantity_of_agents, Breakdown, Estimator, Model, Step};
+use super::{cov_trace_of_agents, quantity_of_agents, Breakdown, Estimator, Model, Reads, Step};
 
 /// Which filter runs on the edges.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,6 +134,9 @@ impl AdaptiveRw {
 }
 
 impl Estimator for AdaptiveRw {
+    fn reads(&self) -> Reads {
+        Reads::INCREMENTS
+    }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
             return;

@@ -42,7 +42,7 @@ use super::pcrb::{EdgePcrb, GaPrior, Observation};
 use super::rkf_adaptive::{agent_scale, provides};
 use super::{
     cov_trace_of_agents, options_of, parse_options, quantity_of_agents, to_static, Configured,
-    Cost, Estimator, EstimatorKind, Model, Options, Step,
+    Cost, Estimator, EstimatorKind, Model, Options, Reads, Step,
 };
 
 /// `kind = "rkf-ca"`.
@@ -1079,6 +1079,9 @@ impl<const D: usize> RkfCa<D> {
 }
 
 impl<const D: usize> Estimator for RkfCa<D> {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         for e in 0..self.ca.edges.len() {
             self.ca.step_direct(e, s);

@@ -34,7 +34,8 @@ use serde::{Deserialize, Serialize};
 use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::{
     check_kalman, cov_trace_of_agents, edge_trace_sum, parse_options, to_dynamic, to_static,
-    Breakdown, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Step,
+    Breakdown, Configured, Consistency, Cost, Estimator, EstimatorKind, Model, Options, Reads,
+    Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -362,6 +363,9 @@ impl<const D: usize> RkfCommless<D> {
 }
 
 impl<const D: usize> Estimator for RkfCommless<D> {
+    fn reads(&self) -> Reads {
+        Reads::MEANS
+    }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
             return;

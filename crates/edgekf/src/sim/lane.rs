@@ -12,7 +12,7 @@ use super::sensing::EdgeStates;
 use super::stages::Shared;
 use super::{motion, LaneOut, Options};
 use crate::control::{pin_leaders, ControlInput, Controller, LeaderMode};
-use crate::estimate::{Estimator, Step};
+use crate::estimate::{Estimator, Reads, Step};
 use crate::framework::Framework;
 use crate::scenario::{EstimatorDef, Feedback, Scenario};
 
@@ -144,8 +144,9 @@ impl Lane {
                 z: z0.to_vec(),
                 u: vec![0.0; nd * runs],
                 u_next: vec![0.0; nd * runs],
-                du: vec![0.0; md * runs],
-                x: vec![0.0; md * runs],
+                // NaN until formed: read only by an estimator that has them formed.
+                du: vec![f64::NAN; md * runs],
+                x: vec![f64::NAN; md * runs],
                 y: vec![0.0; md * runs],
             },
             stop: None,
@@ -175,6 +176,18 @@ impl Lane {
             diverged,
             ..
         } = self;
+        // `x` for the estimator that reads it, the metrics of a report and a control law fed
+        // the true edges; `Δu` for the estimator that reads it.
+        let reads = est.reads();
+        let want = Reads {
+            increments: reads.increments,
+            truth: reads.truth || at.now || cx.feedback == Feedback::Truth,
+        };
+        if cfg!(debug_assertions) && !want.truth {
+            // Stale true edges read by an estimator that says it does not read them would
+            // go unnoticed; NaN does not (the tests run the debug build).
+            s.x.fill(f64::NAN);
+        }
         EdgeStates {
             x: &mut s.x,
             y: &mut s.y,
@@ -185,6 +198,7 @@ impl Lane {
             &s.z,
             &s.u,
             sh.meas_noise(self.noise),
+            want,
             cx.d,
             cx.dt,
             cx.runs,

@@ -5,6 +5,7 @@
 //! estimators that use that T (common random numbers).
 
 use crate::linalg::{batch_gemv, psd_factor, to_row_major, with_avx2};
+use crate::step::Reads;
 use nalgebra::DMatrix;
 
 /// Measurement-mean noise for each distinct T.
@@ -124,8 +125,9 @@ pub(crate) struct EdgeStates<'a> {
 
 impl EdgeStates<'_> {
     /// Forms the edge arrays of `edges` from positions `z`, inputs `u` and the measurement
-    /// noise (compiled for AVX2 when the CPU has it, without fused multiply–add: the bits of the
-    /// portable code).
+    /// noise: `ȳ` always, `x` and `Δu` where `want` asks for them (compiled for AVX2 when the
+    /// CPU has it, without fused multiply–add: the bits of the portable code; `ȳ` is
+    /// `(z_i − z_j) + v̄` whether `x` is stored or not, the same bits).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn form(
         &mut self,
@@ -133,6 +135,7 @@ impl EdgeStates<'_> {
         z: &[f64],
         u: &[f64],
         noise: MeasNoise<'_>,
+        want: Reads,
         d: usize,
         dt: f64,
         runs: usize,
@@ -141,7 +144,7 @@ impl EdgeStates<'_> {
         if d == 2 {
             with_avx2(
                 #[inline(always)]
-                || self.form2(edges, &inputs, noise),
+                || self.form2(edges, &inputs, noise, want),
             );
             return;
         }
@@ -152,45 +155,49 @@ impl EdgeStates<'_> {
             for a in 0..d {
                 let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
                 let (zi, zj) = (&z[ri..ri + runs], &z[rj..rj + runs]);
-                let (ui, uj) = (&u[ri..ri + runs], &u[rj..rj + runs]);
                 let v = &vbar[re..re + runs];
-                let xs = &mut self.x[re..re + runs];
-                let ys = &mut self.y[re..re + runs];
-                let ds = &mut self.du[re..re + runs];
-                for r in 0..runs {
-                    let x = zi[r] - zj[r];
-                    xs[r] = x;
-                    ys[r] = x + v[r];
-                    ds[r] = dt * (ui[r] - uj[r]);
+                for ((y, v), (a, b)) in self.y[re..re + runs]
+                    .iter_mut()
+                    .zip(v)
+                    .zip(zi.iter().zip(zj))
+                {
+                    *y = (a - b) + v;
+                }
+                if want.truth {
+                    for (x, (a, b)) in self.x[re..re + runs].iter_mut().zip(zi.iter().zip(zj)) {
+                        *x = a - b;
+                    }
+                }
+                if want.increments {
+                    let (ui, uj) = (&u[ri..ri + runs], &u[rj..rj + runs]);
+                    for (dv, (a, b)) in self.du[re..re + runs].iter_mut().zip(ui.iter().zip(uj)) {
+                        *dv = dt * (a - b);
+                    }
                 }
             }
         }
     }
 
-    /// D = 2: both coordinates of an edge in one pass over the runs.
+    /// D = 2: both coordinates of an edge, a pass over the runs for each array formed.
     #[inline(always)]
-    fn form2(&mut self, edges: &[(usize, usize)], inp: &Inputs<'_>, noise: MeasNoise<'_>) {
+    fn form2(
+        &mut self,
+        edges: &[(usize, usize)],
+        inp: &Inputs<'_>,
+        noise: MeasNoise<'_>,
+        want: Reads,
+    ) {
         let Inputs { z, u, dt, runs } = *inp;
         for (e, &(i, j)) in edges.iter().enumerate() {
             let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
-            let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
-            let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
-            let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
             let (zi, zj) = (&z[ri..ri + 2 * runs], &z[rj..rj + 2 * runs]);
-            let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
-            for r in 0..runs {
-                let (a, b) = (zi[r] - zj[r], zi[runs + r] - zj[runs + r]);
-                x0[r] = a;
-                x1[r] = b;
-                d0[r] = dt * (ui[r] - uj[r]);
-                d1[r] = dt * (ui[runs + r] - uj[runs + r]);
-            }
+            let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
             match noise {
                 MeasNoise::Mean(vbar) => {
                     let v = &vbar[re..re + 2 * runs];
                     for r in 0..runs {
-                        y0[r] = x0[r] + v[r];
-                        y1[r] = x1[r] + v[runs + r];
+                        y0[r] = (zi[r] - zj[r]) + v[r];
+                        y1[r] = (zi[runs + r] - zj[runs + r]) + v[runs + r];
                     }
                 }
                 MeasNoise::Factor { factor, eta } => {
@@ -198,9 +205,24 @@ impl EdgeStates<'_> {
                     let (h0, h1) = eta[re..re + 2 * runs].split_at(runs);
                     for r in 0..runs {
                         // `v̄ = chol(R/T) η` as `Sensing::update` evaluates it for D ≠ 2.
-                        y0[r] = x0[r] + (c[0] * h0[r] + c[1] * h1[r]);
-                        y1[r] = x1[r] + (c[2] * h0[r] + c[3] * h1[r]);
+                        y0[r] = (zi[r] - zj[r]) + (c[0] * h0[r] + c[1] * h1[r]);
+                        y1[r] = (zi[runs + r] - zj[runs + r]) + (c[2] * h0[r] + c[3] * h1[r]);
                     }
+                }
+            }
+            if want.truth {
+                let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
+                for r in 0..runs {
+                    x0[r] = zi[r] - zj[r];
+                    x1[r] = zi[runs + r] - zj[runs + r];
+                }
+            }
+            if want.increments {
+                let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
+                let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
+                for r in 0..runs {
+                    d0[r] = dt * (ui[r] - uj[r]);
+                    d1[r] = dt * (ui[runs + r] - uj[runs + r]);
                 }
             }
         }
