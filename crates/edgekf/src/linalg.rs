@@ -226,6 +226,16 @@ const RUN_BLOCK: usize = 16;
 /// `x[a] = Σ_b m[a, b] · v[b]` for every run, with `m` a dense `rows × cols` row-major matrix.
 #[inline]
 pub fn batch_gemv(m: &[f64], rows: usize, cols: usize, v: &[f64], x: &mut [f64], runs: usize) {
+    // AVX2 without fused multiply–add: the bits of the portable code.
+    with_avx2(
+        #[inline(always)]
+        || gemv_runs(m, (rows, cols), v, x, runs),
+    );
+}
+
+/// The body of [`batch_gemv`].
+#[inline(always)]
+fn gemv_runs(m: &[f64], (rows, cols): (usize, usize), v: &[f64], x: &mut [f64], runs: usize) {
     x[..rows * runs].fill(0.0);
     for a in 0..rows {
         let xa = &mut x[a * runs..(a + 1) * runs];

@@ -26,6 +26,7 @@ pub mod laws;
 pub mod maneuver;
 
 use crate::framework::Framework;
+use crate::linalg::with_avx2;
 use crate::step::Faults;
 
 /// The followers' control law (Li & Rajan Table 1).
@@ -202,6 +203,17 @@ impl Controller {
         first: usize,
         ui: &mut [f64],
     ) {
+        // Element-wise products and sums over the runs, no fused multiply–add: AVX2 gives the
+        // bits of the portable code.
+        with_avx2(
+            #[inline(always)]
+            || self.agent_input(i, input, first, ui),
+        );
+    }
+
+    /// The body of [`Controller::apply_agent`].
+    #[inline(always)]
+    fn agent_input(&mut self, i: usize, input: &ControlInput<'_>, first: usize, ui: &mut [f64]) {
         let (d, r) = (self.dim, self.runs);
         ui.fill(0.0);
         let (range, role) = self.agents[i].clone();
@@ -255,6 +267,7 @@ impl Controller {
     }
 
     /// A follower's law from its edges `range` (read through `edges`).
+    #[inline(always)]
     fn follower<'e>(
         &mut self,
         i: usize,
