@@ -8,7 +8,7 @@ use super::divergence::{self, Stop};
 use super::frames::{FramePlan, FrameRecorder};
 use super::metrics::{metrics_for, Measure, Metric};
 use super::observe::{InputAutocov, LaneObserver, PathRecorder};
-use super::sensing::EdgeStates;
+use super::sensing::{EdgeStates, MeasNoise};
 use super::stages::Shared;
 use super::{motion, LaneOut, Options};
 use crate::control::{pin_leaders, ControlInput, Controller, LeaderMode};
@@ -176,33 +176,7 @@ impl Lane {
             diverged,
             ..
         } = self;
-        // `x` for the estimator that reads it, the metrics of a report and a control law fed
-        // the true edges; `Δu` for the estimator that reads it.
-        let reads = est.reads();
-        let want = Reads {
-            increments: reads.increments,
-            truth: reads.truth || at.now || cx.feedback == Feedback::Truth,
-        };
-        if cfg!(debug_assertions) && !want.truth {
-            // Stale true edges read by an estimator that says it does not read them would
-            // go unnoticed; NaN does not (the tests run the debug build).
-            s.x.fill(f64::NAN);
-        }
-        EdgeStates {
-            x: &mut s.x,
-            y: &mut s.y,
-            du: &mut s.du,
-        }
-        .form(
-            cx.edges,
-            &s.z,
-            &s.u,
-            sh.meas_noise(self.noise),
-            want,
-            cx.d,
-            cx.dt,
-            cx.runs,
-        );
+        s.sense(est.reads(), at, sh.meas_noise(self.noise), cx);
         let targets = sh.targets.as_ref();
         let step = Step {
             k: at.k,
@@ -299,6 +273,31 @@ impl Lane {
             o.finish(&mut out);
         }
         out
+    }
+}
+
+impl State {
+    /// The sensing stage of step `at` for an estimator that reads `reads`: `ȳ` always, `x` for
+    /// the estimator that reads it, the metrics of a report and a control law fed the true
+    /// edges, `Δu` for the estimator that reads it.
+    fn sense(&mut self, reads: Reads, at: At, noise: MeasNoise<'_>, cx: &Context<'_>) {
+        let want = Reads {
+            increments: reads.increments,
+            truth: reads.truth || at.now || cx.feedback == Feedback::Truth,
+        };
+        if cfg!(debug_assertions) && !want.truth {
+            // Stale true edges read by an estimator that says it does not read them would
+            // go unnoticed; NaN does not (the tests run the debug build).
+            self.x.fill(f64::NAN);
+        }
+        EdgeStates {
+            x: &mut self.x,
+            y: &mut self.y,
+            du: &mut self.du,
+        }
+        .form(
+            cx.edges, &self.z, &self.u, noise, want, cx.d, cx.dt, cx.runs,
+        );
     }
 }
 
