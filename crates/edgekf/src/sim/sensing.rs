@@ -156,22 +156,23 @@ impl EdgeStates<'_> {
                 let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
                 let (zi, zj) = (&z[ri..ri + runs], &z[rj..rj + runs]);
                 let v = &vbar[re..re + runs];
-                for ((y, v), (a, b)) in self.y[re..re + runs]
+                for ((y, v), (zia, zja)) in self.y[re..re + runs]
                     .iter_mut()
                     .zip(v)
                     .zip(zi.iter().zip(zj))
                 {
-                    *y = (a - b) + v;
+                    *y = (zia - zja) + v;
                 }
                 if want.truth {
-                    for (x, (a, b)) in self.x[re..re + runs].iter_mut().zip(zi.iter().zip(zj)) {
-                        *x = a - b;
+                    for (x, (zia, zja)) in self.x[re..re + runs].iter_mut().zip(zi.iter().zip(zj)) {
+                        *x = zia - zja;
                     }
                 }
                 if want.increments {
                     let (ui, uj) = (&u[ri..ri + runs], &u[rj..rj + runs]);
-                    for (dv, (a, b)) in self.du[re..re + runs].iter_mut().zip(ui.iter().zip(uj)) {
-                        *dv = dt * (a - b);
+                    for (dv, (uia, uja)) in self.du[re..re + runs].iter_mut().zip(ui.iter().zip(uj))
+                    {
+                        *dv = dt * (uia - uja);
                     }
                 }
             }
