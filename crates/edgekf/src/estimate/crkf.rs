@@ -273,6 +273,80 @@ impl Crkf {
         });
     }
 
+    /// Prediction: `ζ_n += Δt (u_n − u_0)`.
+    fn predict(&mut self, s: &Step<'_>) {
+        let (r, d) = (self.runs, self.dim);
+        for n in 1..=self.q.nrows() / d {
+            for k in 0..d {
+                let zrow = &mut self.zeta[((n - 1) * d + k) * r..((n - 1) * d + k + 1) * r];
+                let un = &s.u_prev[(n * d + k) * r..(n * d + k + 1) * r];
+                let u0 = &s.u_prev[k * r..(k + 1) * r];
+                for ((z, a), b) in zrow.iter_mut().zip(un).zip(u0) {
+                    *z += s.dt * (a - b);
+                }
+            }
+        }
+    }
+
+    /// The update run by run (measurements fail run by run): each run's information from its
+    /// observed edges, its covariance, then `ζ̂ += Σ (b − J ζ̂⁻)`. False when a covariance lost
+    /// positive definiteness.
+    fn correct_per_run(&mut self, s: &Step<'_>) -> bool {
+        let (r, d, nz) = (self.runs, self.dim, self.q.nrows());
+        self.b.fill(0.0);
+        self.information_vector(s);
+        for run in 0..r {
+            self.j_run.fill(0.0);
+            let mut partial = false;
+            for (e, wi) in self.w_inv_m.iter().enumerate() {
+                if s.faults.observed(e, run) {
+                    add_edge_information(&mut self.j_run, self.edges[e], d, wi);
+                } else {
+                    partial = true;
+                }
+            }
+            let c = &mut self.covs[run];
+            if (!c.frozen || partial) && !c.step(&self.q, &self.j_run, &self.gtg, partial) {
+                return false;
+            }
+            // ζ̂ += Σ (b − J ζ̂⁻) for this run.
+            for a in 0..nz {
+                let mut v = self.b[a * r + run];
+                for c2 in 0..nz {
+                    v -= self.j_run[(a, c2)] * self.zeta[c2 * r + run];
+                }
+                self.b[a * r + run] = v;
+            }
+            for a in 0..nz {
+                let mut v = 0.0;
+                for c2 in 0..nz {
+                    v += c.sigma_rm[a * nz + c2] * self.b[c2 * r + run];
+                }
+                self.zeta[a * r + run] += v;
+            }
+        }
+        true
+    }
+
+    /// `x̂_e = ζ̂_i − ζ̂_j` with `ζ̂_0 = 0`.
+    fn edge_estimates(&mut self) {
+        let (r, d) = (self.runs, self.dim);
+        for (e, &(i, j)) in self.edges.iter().enumerate() {
+            let xe = &mut self.x[e * d * r..(e + 1) * d * r];
+            xe.fill(0.0);
+            if i > 0 {
+                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(i - 1) * d * r..i * d * r]) {
+                    *xv += zv;
+                }
+            }
+            if j > 0 {
+                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(j - 1) * d * r..j * d * r]) {
+                    *xv -= zv;
+                }
+            }
+        }
+    }
+
     /// `b = Gᵀ W⁻¹ ȳ` over the observed edges (runs innermost).
     fn information_vector(&mut self, s: &Step<'_>) {
         let (r, d) = (self.runs, self.dim);
@@ -335,19 +409,8 @@ impl Estimator for Crkf {
         if self.breakdown.is_some() {
             return;
         }
-        let (r, d) = (self.runs, self.dim);
-        let nz = self.q.nrows();
-        // Prediction: ζ_n += Δt (u_n − u_0).
-        for n in 1..=nz / d {
-            for k in 0..d {
-                let zrow = &mut self.zeta[((n - 1) * d + k) * r..((n - 1) * d + k + 1) * r];
-                let un = &s.u_prev[(n * d + k) * r..(n * d + k + 1) * r];
-                let u0 = &s.u_prev[k * r..(k + 1) * r];
-                for ((z, a), b) in zrow.iter_mut().zip(un).zip(u0) {
-                    *z += s.dt * (a - b);
-                }
-            }
-        }
+        self.predict(s);
+        let (r, nz) = (self.runs, self.q.nrows());
         if self.shared {
             if !self.covs[0].frozen && !self.covs[0].step(&self.q, &self.j, &self.gtg, false) {
                 self.fail();
@@ -360,58 +423,11 @@ impl Estimator for Crkf {
             }
             self.information_vector(s);
             batch_gemv_acc(&self.covs[0].sigma_rm, nz, &self.b, &mut self.zeta, r);
-        } else {
-            self.b.fill(0.0);
-            self.information_vector(s);
-            for run in 0..r {
-                self.j_run.fill(0.0);
-                let mut partial = false;
-                for (e, wi) in self.w_inv_m.iter().enumerate() {
-                    if s.faults.observed(e, run) {
-                        add_edge_information(&mut self.j_run, self.edges[e], d, wi);
-                    } else {
-                        partial = true;
-                    }
-                }
-                let c = &mut self.covs[run];
-                if (!c.frozen || partial) && !c.step(&self.q, &self.j_run, &self.gtg, partial) {
-                    self.breakdown.get_or_insert(Breakdown {
-                        what: "the CRKF covariance lost positive definiteness".into(),
-                    });
-                    return;
-                }
-                // ζ̂ += Σ (b − J ζ̂⁻) for this run.
-                for a in 0..nz {
-                    let mut v = self.b[a * r + run];
-                    for c2 in 0..nz {
-                        v -= self.j_run[(a, c2)] * self.zeta[c2 * r + run];
-                    }
-                    self.b[a * r + run] = v;
-                }
-                for a in 0..nz {
-                    let mut v = 0.0;
-                    for c2 in 0..nz {
-                        v += c.sigma_rm[a * nz + c2] * self.b[c2 * r + run];
-                    }
-                    self.zeta[a * r + run] += v;
-                }
-            }
+        } else if !self.correct_per_run(s) {
+            self.fail();
+            return;
         }
-        // x̂_e = ζ̂_i − ζ̂_j with ζ̂_0 = 0.
-        for (e, &(i, j)) in self.edges.iter().enumerate() {
-            let xe = &mut self.x[e * d * r..(e + 1) * d * r];
-            xe.fill(0.0);
-            if i > 0 {
-                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(i - 1) * d * r..i * d * r]) {
-                    *xv += zv;
-                }
-            }
-            if j > 0 {
-                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(j - 1) * d * r..j * d * r]) {
-                    *xv -= zv;
-                }
-            }
-        }
+        self.edge_estimates();
     }
 
     fn estimates(&self) -> &[f64] {

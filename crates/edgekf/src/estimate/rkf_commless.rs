@@ -226,10 +226,16 @@ impl<const D: usize> RkfCommless<D> {
     }
 
     fn step_shared(&mut self, s: &Step<'_>) {
-        let (r, dt) = (self.runs, self.dt);
-        let block = D * r;
-        let ne = self.edges.len();
-        for e in 0..ne {
+        if self.shared_covariances() {
+            self.shared_means(s);
+        }
+    }
+
+    /// Every edge's covariance shared by the runs, one step, with its gain and its Wiener
+    /// predictor kept for [`Self::shared_means`]; false (and a breakdown) when an innovation
+    /// covariance is not positive definite.
+    fn shared_covariances(&mut self) -> bool {
+        for e in 0..self.edges.len() {
             let (cur, prev) = match &self.covs {
                 Covs::Shared {
                     covs, sigma_prev, ..
@@ -258,7 +264,7 @@ impl<const D: usize> RkfCommless<D> {
                         "the innovation covariance of edge ({i}, {j}) is not positive definite"
                     ),
                 });
-                return;
+                return false;
             }
             for a in 0..D {
                 for b in 0..D {
@@ -267,6 +273,14 @@ impl<const D: usize> RkfCommless<D> {
                 }
             }
         }
+        true
+    }
+
+    /// Every run's means with the shared gains: the neighbour's input predicted from the last
+    /// two estimates (Wiener), the prediction, the correction.
+    fn shared_means(&mut self, s: &Step<'_>) {
+        let (r, dt) = (self.runs, self.dt);
+        let block = D * r;
         let Covs::Shared {
             wiener, gains, x, ..
         } = &mut self.covs
