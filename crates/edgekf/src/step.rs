@@ -198,15 +198,20 @@ pub struct Target {
 }
 
 /// Which of a [`Step`]'s derived fields an estimator reads ([`crate::estimate::Estimator::reads`]),
-/// so that the simulation forms only those: every step's `y`, `u_prev`, `faults` and `target`
-/// are always there; `du` and `truth` only when read (and `truth` at a report, for the
-/// metrics). A field not read holds stale values or NaN.
+/// so that the simulation forms only those: every step's `u_prev`, `faults`, `target` and
+/// [`Step::means`] are always there; `y` unless the estimator forms the means itself, `du` and
+/// `truth` only when read (and `truth` at a report, for the metrics). A field not read holds
+/// stale values or NaN.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Reads {
     /// [`Step::du`], the prediction increments.
     pub increments: bool,
     /// [`Step::truth`], the true edges.
     pub truth: bool,
+    /// [`Step::y`], the measurement means as an array. Without it the estimator forms the rows
+    /// it reads with [`Step::means`] (the same bits), which saves the pass that writes the
+    /// array and the one that reads it back.
+    pub means: bool,
 }
 
 impl Reads {
@@ -214,17 +219,157 @@ impl Reads {
     pub const ALL: Reads = Reads {
         increments: true,
         truth: true,
+        means: true,
     };
     /// The measurement means and the inputs only.
     pub const MEANS: Reads = Reads {
         increments: false,
         truth: false,
+        means: true,
     };
     /// The means, the inputs and the prediction increments.
     pub const INCREMENTS: Reads = Reads {
         increments: true,
         truth: false,
+        means: true,
     };
+
+    /// The same, with the means formed by the estimator ([`Step::means`]) instead of read
+    /// from [`Step::y`].
+    pub const fn forming_means(self) -> Reads {
+        Reads {
+            means: false,
+            ..self
+        }
+    }
+}
+
+/// The noise of the measurement means `v̄`, as the sensing stage has it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum MeasNoise<'a> {
+    /// `v̄` itself (M·D rows × runs).
+    Mean(&'a [f64]),
+    /// D = 2: `v̄_e = chol(R_e / T) η_e`, each edge's factor row-major (M × 4) and the normals
+    /// `η` (M·2 rows × runs).
+    Factor {
+        /// The factors.
+        factor: &'a [f64],
+        /// This step's normals.
+        eta: &'a [f64],
+    },
+}
+
+/// The measurement means `ȳ_k` of a step (MD rows × runs), for an estimator that forms the rows
+/// it reads ([`Reads::means`] false): either the formed array, or what it is formed from — the
+/// positions and the noise — with [`form_edge_means`], the one expression of the sensing
+/// stage, so the rows have the bits of the array.
+#[derive(Debug, Clone, Copy)]
+pub struct Means<'a>(MeansOf<'a>);
+
+#[derive(Debug, Clone, Copy)]
+enum MeansOf<'a> {
+    /// The array and the length of an edge's rows (D × runs).
+    Formed(&'a [f64], usize),
+    Raw {
+        edges: &'a [(usize, usize)],
+        z: &'a [f64],
+        noise: MeasNoise<'a>,
+        d: usize,
+        runs: usize,
+    },
+}
+
+impl<'a> Means<'a> {
+    /// The means of an array already formed (`d` rows per edge, runs innermost).
+    pub fn formed(y: &'a [f64], d: usize, runs: usize) -> Self {
+        Self(MeansOf::Formed(y, d * runs))
+    }
+
+    /// The means of `edges` from the positions `z` (N·D rows × runs) and the noise.
+    pub(crate) fn raw(
+        edges: &'a [(usize, usize)],
+        z: &'a [f64],
+        noise: MeasNoise<'a>,
+        d: usize,
+        runs: usize,
+    ) -> Self {
+        Self(MeansOf::Raw {
+            edges,
+            z,
+            noise,
+            d,
+            runs,
+        })
+    }
+
+    /// Edges `first..first + k`'s rows (`k`·D rows × runs, the length of `out`) into `out`.
+    #[inline]
+    pub fn edges_into(&self, first: usize, out: &mut [f64]) {
+        match self.0 {
+            MeansOf::Formed(y, block) => {
+                let start = first * block;
+                out.copy_from_slice(&y[start..start + out.len()]);
+            }
+            MeansOf::Raw {
+                edges,
+                z,
+                noise,
+                d,
+                runs,
+            } => {
+                let block = d * runs;
+                crate::linalg::with_avx2(
+                    #[inline(always)]
+                    || {
+                        for (k, rows) in out.chunks_exact_mut(block).enumerate() {
+                            let e = first + k;
+                            form_edge_means(e, edges[e], z, noise, (d, runs), rows);
+                        }
+                    },
+                );
+            }
+        }
+    }
+
+    /// Every edge's rows (MD rows × runs) into `out`.
+    pub fn all_into(&self, out: &mut [f64]) {
+        self.edges_into(0, out);
+    }
+}
+
+/// Edge `e = (i, j)`'s measurement means (D rows × runs) into `y`: `(z_i − z_j) + v̄_e` — the
+/// one expression by which the sensing stage and [`Means`] form them (so both have the same
+/// bits). With D = 2 and the factor form, `v̄_e = chol(R_e / T) η_e` is applied here.
+#[inline(always)]
+pub(crate) fn form_edge_means(
+    e: usize,
+    (i, j): (usize, usize),
+    z: &[f64],
+    noise: MeasNoise<'_>,
+    (d, runs): (usize, usize),
+    y: &mut [f64],
+) {
+    let (re, ri, rj) = (e * d * runs, i * d * runs, j * d * runs);
+    let (zi, zj) = (&z[ri..ri + d * runs], &z[rj..rj + d * runs]);
+    match noise {
+        MeasNoise::Factor { factor, eta } if d == 2 => {
+            let c = &factor[e * 4..e * 4 + 4];
+            let (h0, h1) = eta[re..re + 2 * runs].split_at(runs);
+            let (y0, y1) = y[..2 * runs].split_at_mut(runs);
+            for r in 0..runs {
+                // `v̄ = chol(R/T) η` as `Sensing::update` evaluates it for D ≠ 2.
+                y0[r] = (zi[r] - zj[r]) + (c[0] * h0[r] + c[1] * h1[r]);
+                y1[r] = (zi[runs + r] - zj[runs + r]) + (c[2] * h0[r] + c[3] * h1[r]);
+            }
+        }
+        MeasNoise::Factor { .. } => unreachable!("the factor form is D = 2 only"),
+        MeasNoise::Mean(vbar) => {
+            let v = &vbar[re..re + d * runs];
+            for (((y, v), zia), zja) in y[..d * runs].iter_mut().zip(v).zip(zi).zip(zj) {
+                *y = (zia - zja) + v;
+            }
+        }
+    }
 }
 
 /// Everything an estimator may read at step `k`: the outputs of the stages that run before
@@ -236,7 +381,10 @@ pub struct Step<'a> {
     /// Δt.
     pub dt: f64,
     /// Measurement means `ȳ_k` for this estimator's T (MD rows); meaningful where observed.
+    /// Formed unless the estimator forms them itself ([`Reads::means`]).
     pub y: &'a [f64],
+    /// The same means, for an estimator that forms the rows it reads ([`Reads::means`] false).
+    pub means: Means<'a>,
     /// Node inputs of the previous step `u_{k−1}` (ND rows).
     pub u_prev: &'a [f64],
     /// Prediction increments `Δt (u^i_{k−1} − u^j_{k−1})` per directed edge (MD rows): what the

@@ -66,6 +66,7 @@ fn covariances_stay_psd_and_node_space_crkf_matches_edge_space() {
         k: 1,
         dt: sc.dt(),
         y: &zeros_e,
+        means: edgekf::estimate::Means::formed(&zeros_e, d, 1),
         u_prev: &zeros_n,
         du: &zeros_e,
         faults: &faults,

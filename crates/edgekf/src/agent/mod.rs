@@ -32,7 +32,7 @@ use crate::control::{ControlInput, Controller, LeaderMode};
 use crate::estimate::{ArModel, Estimator, Model};
 use crate::scenario::{EstimatorDef, Scenario};
 use crate::sim::world::Targets;
-use crate::step::{Faults, Step};
+use crate::step::{Faults, Means, Step};
 
 pub use lockstep::{lockstep, LockstepError};
 pub use messages::{Exchange, LaneOutput, LaneSensing, Output, Report, Sensing};
@@ -123,6 +123,8 @@ struct AgentLane {
     /// otherwise).
     control_truth: Vec<f64>,
     stopped: bool,
+    /// D.
+    d: usize,
 }
 
 /// One agent of the formation.
@@ -357,6 +359,7 @@ impl AgentLane {
             u_next: vec![0.0; d],
             control_truth: Vec::new(),
             stopped: false,
+            d,
         }
     }
 
@@ -444,6 +447,7 @@ impl AgentLane {
             k,
             dt,
             y: &self.y,
+            means: Means::formed(&self.y, self.d, 1),
             u_prev: &self.u,
             du: &self.du,
             faults: &self.faults,
@@ -484,6 +488,7 @@ impl AgentLane {
             k: cx.k,
             dt: cx.dt,
             y: &self.y,
+            means: Means::formed(&self.y, self.d, 1),
             u_prev: &self.u,
             du: &self.du,
             faults: &self.faults,
@@ -567,6 +572,7 @@ impl AgentLane {
             k: cx.k,
             dt: cx.dt,
             y,
+            means: Means::formed(y, cx.d, 1),
             u_prev: u,
             du,
             faults,

@@ -21,7 +21,7 @@ use crate::sim::observe::{LaneObserver, PathRecorder};
 use crate::sim::sensing::EdgeStates;
 use crate::sim::stages::Shared;
 use crate::sim::{assemble, motion, Chunk, LaneOut, Options, Results};
-use crate::step::Step;
+use crate::step::{Means, Step};
 
 /// One estimator's closed loop in the world.
 struct WorldLane {
@@ -285,6 +285,7 @@ impl WorldLane {
             k: at.k,
             dt: cx.dt,
             y: &self.y,
+            means: Means::formed(&self.y, cx.d, cx.runs),
             u_prev: &self.u,
             du: &self.du,
             faults: &sh.faults.out,

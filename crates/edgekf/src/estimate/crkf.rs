@@ -184,6 +184,8 @@ pub struct Crkf {
     zeta: Vec<f64>,
     b: Vec<f64>,
     s: Vec<f64>,
+    /// One edge's measurement means (D rows × runs), formed as they are read.
+    y_edge: Vec<f64>,
     x: Vec<f64>,
     breakdown: Option<Breakdown>,
 }
@@ -257,6 +259,7 @@ impl Crkf {
             zeta: vec![0.0; nz * runs],
             b: vec![0.0; nz * runs],
             s: vec![0.0; d * runs],
+            y_edge: vec![0.0; d * runs],
             x: vec![0.0; m.num_edges() * d * runs],
             breakdown: None,
         }
@@ -353,10 +356,11 @@ impl Crkf {
         let faults = s.faults.measurement_faults();
         for (e, &(i, j)) in self.edges.iter().enumerate() {
             self.s.fill(0.0);
+            s.means.edges_into(e, &mut self.y_edge);
             batch_gemv_acc(
                 &self.w_inv[e * d * d..(e + 1) * d * d],
                 d,
-                &s.y[e * d * r..(e + 1) * d * r],
+                &self.y_edge,
                 &mut self.s,
                 r,
             );
@@ -403,7 +407,8 @@ fn add_edge_information(j: &mut DMatrix<f64>, (a, b): (usize, usize), d: usize, 
 
 impl Estimator for Crkf {
     fn reads(&self) -> Reads {
-        Reads::MEANS
+        // Each edge's means formed as `information_vector` reads them.
+        Reads::MEANS.forming_means()
     }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {

@@ -46,7 +46,7 @@ use super::rkf::NoiseOptions;
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, options_of, parse_options, Breakdown, Configured, Cost,
-    Estimator, EstimatorKind, Model, Options, Reads, Step,
+    Estimator, EstimatorKind, Means, Model, Options, Reads, Step,
 };
 use crate::linalg::{batch_gemv_acc, converged, gemm_nn, gemm_tn, spd_solve_in_place, symmetrize};
 
@@ -368,13 +368,20 @@ fn agent_blocks(
     (blocks, max_n)
 }
 
-/// `x ← x + K (y − x)` for one agent's block (`n = x.len() / runs` rows × runs), with the
-/// innovation in `innov`.
-fn correct_mean(gain: &[f64], x: &mut [f64], y: &[f64], innov: &mut [f64], runs: usize) {
+/// `x ← x + K (ȳ − x)` for one agent's block (`n = x.len() / runs` rows × runs, its edges from
+/// `first` on), with the innovation in `innov`, where the means are formed first.
+fn correct_mean(
+    gain: &[f64],
+    x: &mut [f64],
+    (means, first): (&Means<'_>, usize),
+    innov: &mut [f64],
+    runs: usize,
+) {
     let n = x.len() / runs;
     let innov = &mut innov[..n * runs];
-    for ((v, yv), xv) in innov.iter_mut().zip(y).zip(x.iter()) {
-        *v = yv - xv;
+    means.edges_into(first, innov);
+    for (v, xv) in innov.iter_mut().zip(x.iter()) {
+        *v -= xv;
     }
     batch_gemv_acc(gain, n, innov, x, runs);
 }
@@ -754,8 +761,8 @@ impl Jrkf {
             let gain = &self.blocks[self.group[i]].gain;
             correct_mean(
                 gain,
-                &mut self.x[span.clone()],
-                &s.y[span],
+                &mut self.x[span],
+                (&s.means, range.start),
                 &mut self.innov,
                 r,
             );
@@ -780,6 +787,7 @@ impl Jrkf {
             });
         let innov_len = self.innov.len() / SLICES;
         let (blocks, group, agent_rows) = (&self.blocks, &self.group, &self.agent_rows);
+        let agent_edges = &self.agent_edges;
         parts
             .into_par_iter()
             .zip(self.innov.par_chunks_mut(innov_len))
@@ -791,10 +799,11 @@ impl Jrkf {
                     }
                     let (span, local) = (row * r..(row + n) * r, (row - start) * r);
                     let x = &mut x[local..local + n * r];
-                    for (xv, dv) in x.iter_mut().zip(&s.du[span.clone()]) {
+                    for (xv, dv) in x.iter_mut().zip(&s.du[span]) {
                         *xv += dv;
                     }
-                    correct_mean(&blocks[group[i]].gain, x, &s.y[span], innov, r);
+                    let first = agent_edges[i].start;
+                    correct_mean(&blocks[group[i]].gain, x, (&s.means, first), innov, r);
                 }
             });
     }
@@ -868,7 +877,12 @@ impl Jrkf {
 
 impl Estimator for Jrkf {
     fn reads(&self) -> Reads {
-        Reads::INCREMENTS
+        if self.shared {
+            // The shared path forms each agent's means into its innovations.
+            Reads::INCREMENTS.forming_means()
+        } else {
+            Reads::INCREMENTS
+        }
     }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {

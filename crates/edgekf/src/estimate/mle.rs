@@ -124,10 +124,11 @@ impl Mle {
 
 impl Estimator for Mle {
     fn reads(&self) -> Reads {
-        Reads::MEANS
+        // The estimate is the means: formed straight into it.
+        Reads::MEANS.forming_means()
     }
     fn step(&mut self, s: &Step<'_>) {
-        self.x.copy_from_slice(s.y);
+        s.means.all_into(&mut self.x);
         if s.faults.measurement_faults() {
             let (r, d) = (self.runs, self.dim);
             for e in 0..self.traces.len() {

@@ -80,7 +80,7 @@ use nalgebra::{DMatrix, SMatrix};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-pub use crate::step::{Faults, Reads, Step, Target};
+pub use crate::step::{Faults, Means, Reads, Step, Target};
 
 pub use ar::ArModel;
 pub(crate) use model::ModelParts;

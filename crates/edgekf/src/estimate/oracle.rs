@@ -74,6 +74,7 @@ impl Estimator for Oracle {
         Reads {
             increments: false,
             truth: true,
+            means: false,
         }
     }
     fn step(&mut self, s: &Step<'_>) {

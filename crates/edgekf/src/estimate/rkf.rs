@@ -50,7 +50,7 @@ use super::batch::{EdgeBank, EdgeCov, Mat};
 use super::rkf_adaptive::{adaptive_cost, AdaptiveRw, Form};
 use super::{
     check_kalman, cov_trace_of_agents, edge_trace_sum, options_of, parse_options, to_static,
-    Breakdown, Configured, Cost, Estimator, EstimatorKind, Model, Options, Reads, Step,
+    Breakdown, Configured, Cost, Estimator, EstimatorKind, Means, Model, Options, Reads, Step,
 };
 use crate::by_dim;
 use crate::linalg::batch_gemv_acc;
@@ -474,6 +474,17 @@ impl<const D: usize> Rkf<D> {
         }
     }
 
+    /// Whether the step takes [`means2`], which forms each edge's means as it reads them.
+    fn means_in_place(&self) -> bool {
+        D == 2
+            && matches!(self.covs, Covs::Shared { .. })
+            && match self.input {
+                Input::Known => true,
+                Input::Ar { p_fail } => p_fail < 1.0,
+                Input::Zero => false,
+            }
+    }
+
     fn step_shared(&mut self, s: &Step<'_>) {
         let extra = match self.input {
             Input::Ar { p_fail } if p_fail >= 1.0 => Some(self.extra),
@@ -518,7 +529,7 @@ impl<const D: usize> Rkf<D> {
                 (Input::Known, _) | (Input::Ar { .. }, false)
             )
         {
-            means2(group, gains, x, s.y, s.du, r);
+            means2(group, gains, x, (&s.means, innov), s.du, r);
             return;
         }
         for (e, &(i, j)) in self.edges.iter().enumerate() {
@@ -684,7 +695,11 @@ fn ar_increment_of<const D: usize>(
 
 impl<const D: usize> Estimator for Rkf<D> {
     fn reads(&self) -> Reads {
-        Reads::INCREMENTS
+        if self.means_in_place() {
+            Reads::INCREMENTS.forming_means()
+        } else {
+            Reads::INCREMENTS
+        }
     }
     fn step(&mut self, s: &Step<'_>) {
         if self.breakdown.is_some() {
@@ -744,19 +759,37 @@ impl<const D: usize> Estimator for Rkf<D> {
 /// `x̂ += Δx̂; x̂ += K (ȳ − x̂)` in the operation order of `batch_gemv_acc` (zero gains skipped;
 /// an edge whose four gains are non-zero takes a loop without branches, so it vectorises).
 /// Compiled for AVX2 when the CPU has it (no fused multiply–add: the bits of the portable code).
-fn means2(group: &[usize], gains: &[f64], x: &mut [f64], y: &[f64], du: &[f64], r: usize) {
+/// `x ← x + Δu`, then `x ← x + K (ȳ − x)` for every edge (D = 2, a gain per group of
+/// edges), each edge's means formed into `buf` (2 × runs) as they are read.
+fn means2(
+    group: &[usize],
+    gains: &[f64],
+    x: &mut [f64],
+    (means, buf): (&Means<'_>, &mut [f64]),
+    du: &[f64],
+    r: usize,
+) {
     crate::linalg::with_avx2(
         #[inline(always)]
-        || means2_body(group, gains, x, y, du, r),
+        || means2_body(group, gains, x, (means, buf), du, r),
     );
 }
 
 #[inline(always)]
-fn means2_body(group: &[usize], gains: &[f64], x: &mut [f64], y: &[f64], du: &[f64], r: usize) {
+fn means2_body(
+    group: &[usize],
+    gains: &[f64],
+    x: &mut [f64],
+    (means, buf): (&Means<'_>, &mut [f64]),
+    du: &[f64],
+    r: usize,
+) {
     for (e, &g) in group.iter().enumerate() {
         let k = &gains[g * 4..g * 4 + 4];
         let (x0, x1) = x[e * 2 * r..(e + 1) * 2 * r].split_at_mut(r);
-        let (y0, y1) = y[e * 2 * r..(e + 1) * 2 * r].split_at(r);
+        let y = &mut buf[..2 * r];
+        means.edges_into(e, y);
+        let (y0, y1) = y.split_at(r);
         let (d0, d1) = du[e * 2 * r..(e + 1) * 2 * r].split_at(r);
         if k.iter().all(|&v| v != 0.0) {
             for run in 0..r {
@@ -817,6 +850,7 @@ mod tests {
                 k: 1,
                 dt: m.dt(),
                 y: &zeros_e,
+                means: crate::step::Means::formed(&zeros_e, 2, 1),
                 u_prev: &zeros_n,
                 du: &zeros_e,
                 faults: &faults,

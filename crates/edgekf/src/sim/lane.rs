@@ -12,7 +12,7 @@ use super::sensing::{EdgeStates, MeasNoise};
 use super::stages::Shared;
 use super::{motion, LaneOut, Options};
 use crate::control::{pin_leaders, ControlInput, Controller, LeaderMode};
-use crate::estimate::{Estimator, Reads, Step};
+use crate::estimate::{Estimator, Means, Reads, Step};
 use crate::framework::Framework;
 use crate::scenario::{EstimatorDef, Feedback, Scenario};
 
@@ -176,12 +176,18 @@ impl Lane {
             diverged,
             ..
         } = self;
-        s.sense(est.reads(), at, sh.meas_noise(self.noise), cx);
+        let (reads, noise) = (est.reads(), sh.meas_noise(self.noise));
+        s.sense(reads, at, noise, cx);
         let targets = sh.targets.as_ref();
         let step = Step {
             k: at.k,
             dt: cx.dt,
             y: &s.y,
+            means: if reads.means {
+                Means::formed(&s.y, cx.d, cx.runs)
+            } else {
+                Means::raw(cx.edges, &s.z, noise, cx.d, cx.runs)
+            },
             u_prev: &s.u,
             du: &s.du,
             faults: &sh.faults.out,
@@ -277,18 +283,23 @@ impl Lane {
 }
 
 impl State {
-    /// The sensing stage of step `at` for an estimator that reads `reads`: `ȳ` always, `x` for
-    /// the estimator that reads it, the metrics of a report and a control law fed the true
-    /// edges, `Δu` for the estimator that reads it.
+    /// The sensing stage of step `at` for an estimator that reads `reads`: `ȳ` unless the
+    /// estimator forms it, `x` for the estimator that reads it, the metrics of a report and a
+    /// control law fed the true edges, `Δu` for the estimator that reads it.
     fn sense(&mut self, reads: Reads, at: At, noise: MeasNoise<'_>, cx: &Context<'_>) {
         let want = Reads {
-            increments: reads.increments,
             truth: reads.truth || at.now || cx.feedback == Feedback::Truth,
+            ..reads
         };
-        if cfg!(debug_assertions) && !want.truth {
-            // Stale true edges read by an estimator that says it does not read them would
-            // go unnoticed; NaN does not (the tests run the debug build).
-            self.x.fill(f64::NAN);
+        if cfg!(debug_assertions) {
+            // Stale arrays read by an estimator that says it does not read them would go
+            // unnoticed; NaN does not (the tests run the debug build).
+            if !want.truth {
+                self.x.fill(f64::NAN);
+            }
+            if !want.means {
+                self.y.fill(f64::NAN);
+            }
         }
         EdgeStates {
             x: &mut self.x,

@@ -5,7 +5,7 @@
 //! estimators that use that T (common random numbers).
 
 use crate::linalg::{batch_gemv, psd_factor, to_row_major, with_avx2};
-use crate::step::Reads;
+use crate::step::{form_edge_means, Reads};
 use nalgebra::DMatrix;
 
 /// Measurement-mean noise for each distinct T.
@@ -95,19 +95,7 @@ impl Sensing {
 }
 
 /// The noise `v̄` of the measurement means, as [`EdgeStates::form`] takes it.
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum MeasNoise<'a> {
-    /// `v̄` itself (M·D rows × runs).
-    Mean(&'a [f64]),
-    /// D = 2: `v̄_e = chol(R_e / T) η_e`, each edge's factor row-major (M × 4) and the normals
-    /// `η` (M·2 rows × runs).
-    Factor {
-        /// The factors.
-        factor: &'a [f64],
-        /// This step's normals.
-        eta: &'a [f64],
-    },
-}
+pub(crate) use crate::step::MeasNoise;
 
 /// What agent `i` senses of each directed edge `(i, j)` at step k, from the positions and the
 /// inputs of the previous step: the true edge `x = z_i − z_j` (for the metrics only), the
@@ -125,9 +113,9 @@ pub(crate) struct EdgeStates<'a> {
 
 impl EdgeStates<'_> {
     /// Forms the edge arrays of `edges` from positions `z`, inputs `u` and the measurement
-    /// noise: `ȳ` always, `x` and `Δu` where `want` asks for them (compiled for AVX2 when the
-    /// CPU has it, without fused multiply–add: the bits of the portable code; `ȳ` is
-    /// `(z_i − z_j) + v̄` whether `x` is stored or not, the same bits).
+    /// noise, each where `want` asks for it (compiled for AVX2 when the CPU has it, without
+    /// fused multiply–add: the bits of the portable code; `ȳ` is `(z_i − z_j) + v̄` by
+    /// [`form_edge_means`], whether `x` is stored or not and whoever forms it).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn form(
         &mut self,
@@ -140,90 +128,45 @@ impl EdgeStates<'_> {
         dt: f64,
         runs: usize,
     ) {
-        let inputs = Inputs { z, u, dt, runs };
+        let inputs = Inputs { z, u, d, dt, runs };
         if d == 2 {
             with_avx2(
                 #[inline(always)]
-                || self.form2(edges, &inputs, noise, want),
+                || self.form_edges::<2>(edges, &inputs, noise, want),
             );
-            return;
-        }
-        let MeasNoise::Mean(vbar) = noise else {
-            unreachable!("the factor form is D = 2 only")
-        };
-        for (e, &(i, j)) in edges.iter().enumerate() {
-            for a in 0..d {
-                let (re, ri, rj) = ((e * d + a) * runs, (i * d + a) * runs, (j * d + a) * runs);
-                let (zi, zj) = (&z[ri..ri + runs], &z[rj..rj + runs]);
-                let v = &vbar[re..re + runs];
-                for ((y, v), (zia, zja)) in self.y[re..re + runs]
-                    .iter_mut()
-                    .zip(v)
-                    .zip(zi.iter().zip(zj))
-                {
-                    *y = (zia - zja) + v;
-                }
-                if want.truth {
-                    for (x, (zia, zja)) in self.x[re..re + runs].iter_mut().zip(zi.iter().zip(zj)) {
-                        *x = zia - zja;
-                    }
-                }
-                if want.increments {
-                    let (ui, uj) = (&u[ri..ri + runs], &u[rj..rj + runs]);
-                    for (dv, (uia, uja)) in self.du[re..re + runs].iter_mut().zip(ui.iter().zip(uj))
-                    {
-                        *dv = dt * (uia - uja);
-                    }
-                }
-            }
+        } else {
+            self.form_edges::<0>(edges, &inputs, noise, want);
         }
     }
 
-    /// D = 2: both coordinates of an edge, a pass over the runs for each array formed.
+    /// Every edge's arrays, a pass over the runs for each; `D2` is 2 for D = 2 (the loops then
+    /// know their length), else 0 (D from `inp`).
     #[inline(always)]
-    fn form2(
+    fn form_edges<const D2: usize>(
         &mut self,
         edges: &[(usize, usize)],
         inp: &Inputs<'_>,
         noise: MeasNoise<'_>,
         want: Reads,
     ) {
-        let Inputs { z, u, dt, runs } = *inp;
+        let Inputs { z, u, d, dt, runs } = *inp;
+        let d = if D2 == 0 { d } else { D2 };
+        let block = d * runs;
         for (e, &(i, j)) in edges.iter().enumerate() {
-            let (re, ri, rj) = (e * 2 * runs, i * 2 * runs, j * 2 * runs);
-            let (zi, zj) = (&z[ri..ri + 2 * runs], &z[rj..rj + 2 * runs]);
-            let (y0, y1) = self.y[re..re + 2 * runs].split_at_mut(runs);
-            match noise {
-                MeasNoise::Mean(vbar) => {
-                    let v = &vbar[re..re + 2 * runs];
-                    for r in 0..runs {
-                        y0[r] = (zi[r] - zj[r]) + v[r];
-                        y1[r] = (zi[runs + r] - zj[runs + r]) + v[runs + r];
-                    }
-                }
-                MeasNoise::Factor { factor, eta } => {
-                    let c = &factor[e * 4..e * 4 + 4];
-                    let (h0, h1) = eta[re..re + 2 * runs].split_at(runs);
-                    for r in 0..runs {
-                        // `v̄ = chol(R/T) η` as `Sensing::update` evaluates it for D ≠ 2.
-                        y0[r] = (zi[r] - zj[r]) + (c[0] * h0[r] + c[1] * h1[r]);
-                        y1[r] = (zi[runs + r] - zj[runs + r]) + (c[2] * h0[r] + c[3] * h1[r]);
-                    }
-                }
+            let (re, ri, rj) = (e * block, i * block, j * block);
+            if want.means {
+                form_edge_means(e, (i, j), z, noise, (d, runs), &mut self.y[re..re + block]);
             }
             if want.truth {
-                let (x0, x1) = self.x[re..re + 2 * runs].split_at_mut(runs);
-                for r in 0..runs {
-                    x0[r] = zi[r] - zj[r];
-                    x1[r] = zi[runs + r] - zj[runs + r];
+                let (zi, zj) = (&z[ri..ri + block], &z[rj..rj + block]);
+                for (x, (zia, zja)) in self.x[re..re + block].iter_mut().zip(zi.iter().zip(zj)) {
+                    *x = zia - zja;
                 }
             }
             if want.increments {
-                let (ui, uj) = (&u[ri..ri + 2 * runs], &u[rj..rj + 2 * runs]);
-                let (d0, d1) = self.du[re..re + 2 * runs].split_at_mut(runs);
-                for r in 0..runs {
-                    d0[r] = dt * (ui[r] - uj[r]);
-                    d1[r] = dt * (ui[runs + r] - uj[runs + r]);
+                let (ui, uj) = (&u[ri..ri + block], &u[rj..rj + block]);
+                for (dv, (uia, uja)) in self.du[re..re + block].iter_mut().zip(ui.iter().zip(uj)) {
+                    *dv = dt * (uia - uja);
                 }
             }
         }
@@ -235,6 +178,70 @@ impl EdgeStates<'_> {
 struct Inputs<'a> {
     z: &'a [f64],
     u: &'a [f64],
+    d: usize,
     dt: f64,
     runs: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::step::Means;
+
+    /// `Step::means` forms the sensing stage's `ȳ` bit for bit, edge by edge or whole, from the
+    /// positions and either noise form, and reads a formed array back at the right rows.
+    #[test]
+    fn means_formed_on_request_have_the_bits_of_the_array() {
+        let edges = [(0, 1), (1, 0), (1, 2), (2, 0)];
+        let (n, m) = (3, edges.len());
+        // Non-trivial values (an LCG), so that a wrong order of operations changes bits.
+        let mut s = 0x9e37_79b9_u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 7.0 - 3.0
+        };
+        for (d, runs) in [(2, 21), (3, 5)] {
+            let z: Vec<f64> = (0..n * d * runs).map(|_| next()).collect();
+            let u: Vec<f64> = (0..n * d * runs).map(|_| next()).collect();
+            let eta: Vec<f64> = (0..m * d * runs).map(|_| next()).collect();
+            let factor: Vec<f64> = (0..m * d * d).map(|_| next()).collect();
+            let noises = if d == 2 {
+                vec![
+                    MeasNoise::Factor {
+                        factor: &factor,
+                        eta: &eta,
+                    },
+                    MeasNoise::Mean(&eta),
+                ]
+            } else {
+                vec![MeasNoise::Mean(&eta)]
+            };
+            for noise in noises {
+                let (mut x, mut y, mut du) = (
+                    vec![0.0; m * d * runs],
+                    vec![0.0; m * d * runs],
+                    vec![0.0; m * d * runs],
+                );
+                EdgeStates {
+                    x: &mut x,
+                    y: &mut y,
+                    du: &mut du,
+                }
+                .form(&edges, &z, &u, noise, Reads::ALL, d, 0.1, runs);
+                let raw = Means::raw(&edges, &z, noise, d, runs);
+                let mut all = vec![f64::NAN; y.len()];
+                raw.all_into(&mut all);
+                let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&all), bits(&y), "D = {d}");
+                let block = d * runs;
+                let mut two = vec![f64::NAN; 2 * block];
+                raw.edges_into(1, &mut two);
+                assert_eq!(bits(&two), bits(&y[block..3 * block]), "D = {d}");
+                Means::formed(&y, d, runs).edges_into(2, &mut two);
+                assert_eq!(bits(&two), bits(&y[2 * block..4 * block]), "D = {d}");
+            }
+        }
+    }
 }
