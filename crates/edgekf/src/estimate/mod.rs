@@ -117,8 +117,11 @@ pub trait Estimator: Send {
     fn breakdown(&self) -> Option<&Breakdown> {
         None
     }
-    /// Which of [`Step::du`] and [`Step::truth`] [`Estimator::step`] reads (default: both), so
-    /// that the simulation forms only those (a field not read holds stale values or NaN).
+    /// Which of [`Step::du`], [`Step::truth`] and [`Step::y`] [`Estimator::step`] reads
+    /// (default: all), so that the simulation forms only those (a field not read holds stale
+    /// values or NaN). Without [`Step::y`] the estimator forms the means it reads with
+    /// [`Step::means`]; `reads` is asked before every step, so it may follow the path the step
+    /// will take.
     fn reads(&self) -> Reads {
         Reads::ALL
     }
