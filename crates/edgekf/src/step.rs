@@ -261,8 +261,8 @@ pub(crate) enum MeasNoise<'a> {
 
 /// The measurement means `ȳ_k` of a step (MD rows × runs), for an estimator that forms the rows
 /// it reads ([`Reads::means`] false): either the formed array, or what it is formed from — the
-/// positions and the noise — with [`form_edge_means`], the one expression of the sensing
-/// stage, so the rows have the bits of the array.
+/// positions and the noise — with the one expression of the sensing stage
+/// (`step::form_edge_means`), so the rows have the bits of the array.
 #[derive(Debug, Clone, Copy)]
 pub struct Means<'a>(MeansOf<'a>);
 
