@@ -759,8 +759,7 @@ impl<const D: usize> Estimator for Rkf<D> {
 /// `x̂ += Δx̂; x̂ += K (ȳ − x̂)` in the operation order of `batch_gemv_acc` (zero gains skipped;
 /// an edge whose four gains are non-zero takes a loop without branches, so it vectorises).
 /// Compiled for AVX2 when the CPU has it (no fused multiply–add: the bits of the portable code).
-/// `x ← x + Δu`, then `x ← x + K (ȳ − x)` for every edge (D = 2, a gain per group of
-/// edges), each edge's means formed into `buf` (2 × runs) as they are read.
+/// Each edge's means are formed into `buf` (2 × runs) as they are read.
 fn means2(
     group: &[usize],
     gains: &[f64],
@@ -771,56 +770,46 @@ fn means2(
 ) {
     crate::linalg::with_avx2(
         #[inline(always)]
-        || means2_body(group, gains, x, (means, buf), du, r),
+        || {
+            for (e, &g) in group.iter().enumerate() {
+                let k = &gains[g * 4..g * 4 + 4];
+                let (x0, x1) = x[e * 2 * r..(e + 1) * 2 * r].split_at_mut(r);
+                let y = &mut buf[..2 * r];
+                means.edges_into(e, y);
+                let (y0, y1) = y.split_at(r);
+                let (d0, d1) = du[e * 2 * r..(e + 1) * 2 * r].split_at(r);
+                if k.iter().all(|&v| v != 0.0) {
+                    for run in 0..r {
+                        let (a, b) = (x0[run] + d0[run], x1[run] + d1[run]);
+                        let (v0, v1) = (y0[run] - a, y1[run] - b);
+                        x0[run] = a + k[0] * v0 + k[1] * v1;
+                        x1[run] = b + k[2] * v0 + k[3] * v1;
+                    }
+                    continue;
+                }
+                for run in 0..r {
+                    let (a, b) = (x0[run] + d0[run], x1[run] + d1[run]);
+                    let (v0, v1) = (y0[run] - a, y1[run] - b);
+                    let mut na = a;
+                    if k[0] != 0.0 {
+                        na += k[0] * v0;
+                    }
+                    if k[1] != 0.0 {
+                        na += k[1] * v1;
+                    }
+                    let mut nb = b;
+                    if k[2] != 0.0 {
+                        nb += k[2] * v0;
+                    }
+                    if k[3] != 0.0 {
+                        nb += k[3] * v1;
+                    }
+                    x0[run] = na;
+                    x1[run] = nb;
+                }
+            }
+        },
     );
-}
-
-#[inline(always)]
-fn means2_body(
-    group: &[usize],
-    gains: &[f64],
-    x: &mut [f64],
-    (means, buf): (&Means<'_>, &mut [f64]),
-    du: &[f64],
-    r: usize,
-) {
-    for (e, &g) in group.iter().enumerate() {
-        let k = &gains[g * 4..g * 4 + 4];
-        let (x0, x1) = x[e * 2 * r..(e + 1) * 2 * r].split_at_mut(r);
-        let y = &mut buf[..2 * r];
-        means.edges_into(e, y);
-        let (y0, y1) = y.split_at(r);
-        let (d0, d1) = du[e * 2 * r..(e + 1) * 2 * r].split_at(r);
-        if k.iter().all(|&v| v != 0.0) {
-            for run in 0..r {
-                let (a, b) = (x0[run] + d0[run], x1[run] + d1[run]);
-                let (v0, v1) = (y0[run] - a, y1[run] - b);
-                x0[run] = a + k[0] * v0 + k[1] * v1;
-                x1[run] = b + k[2] * v0 + k[3] * v1;
-            }
-            continue;
-        }
-        for run in 0..r {
-            let (a, b) = (x0[run] + d0[run], x1[run] + d1[run]);
-            let (v0, v1) = (y0[run] - a, y1[run] - b);
-            let mut na = a;
-            if k[0] != 0.0 {
-                na += k[0] * v0;
-            }
-            if k[1] != 0.0 {
-                na += k[1] * v1;
-            }
-            let mut nb = b;
-            if k[2] != 0.0 {
-                nb += k[2] * v0;
-            }
-            if k[3] != 0.0 {
-                nb += k[3] * v1;
-            }
-            x0[run] = na;
-            x1[run] = nb;
-        }
-    }
 }
 
 #[cfg(test)]
