@@ -4,7 +4,8 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use edgekf::scenario::{EstimatorEntry, ScenarioSpec};
+use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
+use edgekf::sim::cost::human_seconds;
 
 use crate::Overrides;
 use edgekf_io::reproductions as registry;
@@ -28,6 +29,11 @@ pub struct BenchArgs {
     /// the 60 s maneuver, `--runs` runs): none, rkf-ca and garkf alone and together.
     #[arg(long)]
     garkf: bool,
+    /// Also check the cost model (what `--max-hours` and the long-study notice read) against
+    /// this machine: every shipped filter scenario, each estimator alone without its sweep,
+    /// estimated and measured.
+    #[arg(long)]
+    cost: bool,
 }
 
 /// Runs the benchmark and prints a table.
@@ -74,6 +80,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if args.garkf {
         garkf(args, &pool)?;
+    }
+    if args.cost {
+        cost_model(&pool)?;
     }
     if args.reproduce {
         let dir = std::env::temp_dir().join(format!("edgekf-bench-{}", std::process::id()));
@@ -133,6 +142,72 @@ fn garkf(args: &BenchArgs, pool: &rayon::ThreadPool) -> Result<()> {
         time_row(pool, &spec, &format!("{label:<22}"), false)?;
     }
     println!("target (issue 10): none + rkf-ca + garkf ≥ 1.000e6 agent-steps/s on 2 cores");
+    Ok(())
+}
+
+/// The cost model ([`edgekf::sim::cost`]) against this machine: each estimator of every shipped
+/// filter scenario alone (its sweep and figures left out), the estimate beside the measured
+/// simulation time, and their ratio (the estimate also counts writing the outputs, which is
+/// not measured here).
+fn cost_model(pool: &rayon::ThreadPool) -> Result<()> {
+    let threads = pool.current_num_threads();
+    println!(
+        "\ncost model against this machine, {threads} thread(s): each estimator alone, no sweep"
+    );
+    println!(
+        "{:<24} {:<16} {:>12} {:>12} {:>9}",
+        "scenario", "estimator", "estimated", "measured", "est/meas"
+    );
+    let mut seen: Vec<&str> = Vec::new();
+    let mut ratios: Vec<f64> = Vec::new();
+    for e in registry::ENTRIES.iter().filter(|e| !e.is_slam()) {
+        for (file, text) in e.companions.iter().copied().chain([(e.file, e.text)]) {
+            if seen.contains(&file) {
+                continue;
+            }
+            seen.push(file);
+            let base: ScenarioSpec = toml::from_str(text)?;
+            let fw = registry::framework_of(file, &base)?;
+            for est in &base.estimators {
+                let mut spec = base.clone();
+                spec.plots.clear();
+                spec.sweep = None;
+                spec.estimators = vec![est.clone()];
+                let label = est
+                    .0
+                    .get("label")
+                    .or_else(|| est.0.get("kind"))
+                    .and_then(|v| v.as_str())
+                    .unwrap_or("?");
+                let sc = match Scenario::from_spec(&spec, fw.as_ref()) {
+                    Ok(sc) => sc,
+                    Err(err) => {
+                        println!("{file:<24} {label:<16} not alone: {err}");
+                        continue;
+                    }
+                };
+                let estimated = edgekf::sim::cost(&sc, sc.runs(), threads).seconds;
+                let t = Instant::now();
+                pool.install(|| edgekf::sim::run(&sc, &edgekf::sim::Quiet))?;
+                let measured = t.elapsed().as_secs_f64();
+                ratios.push(estimated / measured);
+                println!(
+                    "{file:<24} {label:<16} {:>12} {:>12} {:>9.2}",
+                    human_seconds(estimated),
+                    human_seconds(measured),
+                    estimated / measured
+                );
+            }
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    if let (Some(lo), Some(hi)) = (ratios.first(), ratios.last()) {
+        println!(
+            "estimated / measured: {lo:.2} to {hi:.2}, median {:.2} ({} studies)",
+            ratios[ratios.len() / 2],
+            ratios.len()
+        );
+    }
     Ok(())
 }
 

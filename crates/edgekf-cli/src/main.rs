@@ -850,7 +850,8 @@ fn reproduce(
             .take()
             .context("each simulation is prepared once")?;
         commit(st, prep, &StudyId::study(sc.name()))?;
-        print_reproduced(&mine, &dir, file, sc, sweep.as_ref(), sim_time);
+        let threads = pool.current_num_threads();
+        print_reproduced(&mine, &dir, (file, sc, threads), sweep.as_ref(), sim_time);
         if report(sc, &res, over) != ExitCode::SUCCESS {
             code = ExitCode::from(DIVERGED);
         }
@@ -1008,8 +1009,7 @@ fn companions<'a>(
 fn print_reproduced(
     mine: &[&registry::Entry],
     dir: &Path,
-    file: &str,
-    sc: &Scenario,
+    (file, sc, threads): (&str, &Scenario, usize),
     sweep: Option<&sim::sweep::SweepResults>,
     sim_time: std::time::Duration,
 ) {
@@ -1022,11 +1022,12 @@ fn print_reproduced(
         eprintln!("{:<16} {}", e.name, pngs.join(", "));
     }
     eprintln!(
-        "  ({file}: {} runs × {} steps{} simulated in {sim_time:.2?})",
+        "  ({file}: {} runs × {} steps{} simulated in {sim_time:.2?}; estimated {})",
         sc.runs(),
         sc.steps(),
         sweep
             .map(|w| format!(" × {} sweep values", w.points.len()))
             .unwrap_or_default(),
+        sim::cost::human_seconds(sim::cost(sc, sc.runs(), threads).seconds),
     );
 }

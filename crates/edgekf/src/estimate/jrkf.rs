@@ -182,7 +182,8 @@ impl Configured for Config {
             Cost {
                 bytes_per_run: md * 8.0 * 2.0,
                 bytes_shared: squares * 8.0 * 8.0,
-                flops_per_run_step: 2.0 * squares / m.agents().max(1) as f64 + 2.0 * md,
+                // Each agent's gain applied to its innovations in every run.
+                flops_per_run_step: 2.0 * squares + 2.0 * md,
                 flops_shared_step: 6.0 * cubes / lanes,
             }
         } else {

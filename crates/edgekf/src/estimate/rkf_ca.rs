@@ -35,6 +35,8 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, SMatrix};
 use serde::{Deserialize, Serialize};
 
+use crate::sim::cost::ops_of_ns;
+
 use super::adaptive::{Adapt, AdaptOptions, Adaptation, Assumed, Bank, BlockModel, Obs};
 use super::ca::{packed_index, packed_len, CaBatch, CaModel, CaWork};
 use super::ca_classes::{ClassWork, Classes, Kind, Place};
@@ -283,37 +285,43 @@ pub(crate) fn ca_cost(m: &Model, axes_ok: bool) -> Cost {
         _ => decouples::<3>(m, axes_ok),
     };
     if decoupled {
-        // D filters of 3 × 3 per edge and run: ≈ 45 ns per edge-run-step with the memory
-        // traffic of a 2,450-edge graph (`report_many_batches_timing`, D = 2), counted at the
-        // cost model's 0.5 ns per operation; a shared covariance costs little per step.
+        // D filters of 3 × 3 per edge and run: ≈ NS_AXIS ns per axis of an edge-run-step with
+        // the memory traffic of a 2,390-edge graph (`edgekf bench --cost`, `garkf-fig13-dense`);
+        // a shared covariance costs little per step.
         Cost {
             bytes_per_run: me * 8.0 * (6.0 * d + n + 2.0 * d),
             bytes_shared: 0.0,
-            flops_per_run_step: me * 45.0 * d,
-            flops_shared_step: me * 200.0,
+            flops_per_run_step: me * d * ops_of_ns(NS_AXIS),
+            flops_shared_step: me * ops_of_ns(100.0),
         }
     } else {
         Cost {
             bytes_per_run: me * 8.0 * (n * (n + 1.0) / 2.0 + n + 2.0 * d),
             bytes_shared: 0.0,
             flops_per_run_step: me * (4.0 * n * n + 4.0 * n * d * d),
-            // The tile kernels cost ≈ 4 µs per directed edge and step whatever the number of
-            // runs in the tile (measured on the hexagon with 2 runs: `garkf-fig11`, 14 s for
-            // 2.5·10⁶ edge-steps), counted at the cost model's 0.5 ns per operation.
-            flops_shared_step: me * 8000.0,
+            // The tile kernels cost ≈ NS_TILE ns per directed edge and step whatever the number
+            // of runs in the tile (measured on the hexagon with 2 runs: `garkf-fig11`).
+            flops_shared_step: me * ops_of_ns(NS_TILE),
         }
     }
 }
 
+/// Measured: nanoseconds per axis of an edge-run-step of the decoupled CA filters, per
+/// directed edge and step of the full form's tile kernels, and per edge-run-step of the
+/// adaptive filters (`edgekf bench --cost`).
+const NS_AXIS: f64 = 22.5;
+const NS_TILE: f64 = 4000.0;
+const NS_ADAPTIVE: f64 = 1000.0;
+
 /// The cost of the adaptive CA filters: per edge and run a `3D` filter with two sensitivities in
-/// dense form (≈ 1 µs per edge-run-step on the hexagon, D = 2).
+/// dense form (≈ NS_ADAPTIVE ns per edge-run-step on the hexagon, D = 2).
 pub(crate) fn adaptive_ca_cost(m: &Model) -> Cost {
     let me = m.num_edges() as f64;
     let n = 3.0 * m.dim() as f64;
     Cost {
         bytes_per_run: me * 3.0 * (n + n * n) * 8.0,
         bytes_shared: 0.0,
-        flops_per_run_step: me * 2000.0,
+        flops_per_run_step: me * ops_of_ns(NS_ADAPTIVE),
         flops_shared_step: 0.0,
     }
 }

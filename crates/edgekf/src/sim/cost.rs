@@ -4,10 +4,13 @@
 //!
 //! Memory counts what grows with the study: the per-run values of every metric at every
 //! reported step (twice: the chunks' and the assembled copy), the recorded paths, and every
-//! chunk's state. Time is a rough model calibrated on this project's measurements (≈ 6 ns per
-//! normal draw, ≈ 0.5 ns per floating-point operation of the loops, 2 cores); it is meant to
-//! tell seconds from hours, not to be precise.
+//! chunk's state. Time is a rough model calibrated on this project's measurements (≈ 1 ns per
+//! normal draw, ≈ 0.25 ns per floating-point operation of the loops, and the measured time of
+//! the CA filters' kernels; 2 cores); it is meant to tell seconds from hours, not to be precise,
+//! and errs on the long side. `edgekf bench --cost` sets it beside the measured time of every
+//! shipped scenario's estimators.
 
+use super::sweep::resolved_key;
 use super::world::Factor;
 use crate::scenario::Scenario;
 
@@ -24,25 +27,39 @@ pub struct StudyCost {
 
 /// Nanoseconds per normal draw and per floating-point operation (measured on this project's
 /// machine; see the user guide's Speed chapter).
-const NS_PER_NORMAL: f64 = 6.0;
-const NS_PER_FLOP: f64 = 0.5;
+const NS_PER_NORMAL: f64 = 1.0;
+const NS_PER_FLOP: f64 = 0.25;
+
+/// A cost measured in nanoseconds, in the model's operations (for kernels whose time is
+/// measured rather than counted).
+pub(crate) fn ops_of_ns(ns: f64) -> f64 {
+    ns / NS_PER_FLOP
+}
 /// Nanoseconds per output row written (a `metrics.csv` row, or one agent's `paths.csv` row, and
 /// its share of the figures): measured ≈ 1 µs on this project's machine, where a study that
 /// reports every step spends more time writing its outputs than simulating.
 const NS_PER_OUTPUT_ROW: f64 = 1000.0;
 
 /// Estimates the cost of running `runs` of the scenario's runs on `threads` threads; a sweep
-/// runs the scenario once per value besides itself, and each of those counts.
+/// runs the scenario once per value, and itself (without the sweep) unless one of the values
+/// is that scenario ([`super::sweep`]); each of those counts.
 pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut c = cost_one(sc, runs, threads);
-    if sc.sweep().is_some() {
-        // An invalid point fails before it runs; it costs nothing.
-        for p in sc.sweep_points().unwrap_or_default() {
-            let q = cost_one(&p.scenario, runs, threads);
-            c.bytes += q.bytes;
-            c.seconds += q.seconds;
-            c.shared_seconds += q.shared_seconds;
-        }
+    let Some(points) = sc.sweep().and(sc.sweep_points().ok()) else {
+        // No sweep; or an invalid point, which fails before anything runs.
+        return c;
+    };
+    let key = resolved_key(sc);
+    if points.iter().any(|p| resolved_key(&p.scenario) == key) {
+        // Its results are kept twice (as the base and as the point), but computed once.
+        c.seconds = 0.0;
+        c.shared_seconds = 0.0;
+    }
+    for p in points {
+        let q = cost_one(&p.scenario, runs, threads);
+        c.bytes += q.bytes;
+        c.seconds += q.seconds;
+        c.shared_seconds += q.shared_seconds;
     }
     c
 }

@@ -230,6 +230,17 @@ pub fn run_with(
     run_in_with(sc, Registry::builtin(), obs, extra)
 }
 
+/// What the simulation of `sc` depends on, as text: its resolved form without the sweep and the
+/// figures (which are drawn from results, never read by the simulation). A sweep point with
+/// the key of the scenario itself is that simulation: its results serve as the base's, and it
+/// is not run twice.
+pub(crate) fn resolved_key(sc: &Scenario) -> String {
+    let mut r = sc.to_resolved();
+    r.sweep = None;
+    r.plots.clear();
+    serde_json::to_string(&r).unwrap_or_default()
+}
+
 fn run_in_with(
     sc: &Scenario,
     registry: &Registry,
@@ -237,7 +248,7 @@ fn run_in_with(
     extra: Options,
 ) -> Result<SweepResults, SweepError> {
     let base_sc = sc.without_sweep();
-    let base_key = serde_json::to_string(&base_sc.to_resolved()).unwrap_or_default();
+    let base_key = resolved_key(&base_sc);
     let mut base = None;
     let mut points = Vec::new();
     let mut summary = Vec::new();
@@ -252,8 +263,7 @@ fn run_in_with(
         ..opt
     };
     for (k, p) in sc.sweep_points_in(registry)?.into_iter().enumerate() {
-        let is_base = base.is_none()
-            && serde_json::to_string(&p.scenario.to_resolved()).unwrap_or_default() == base_key;
+        let is_base = base.is_none() && resolved_key(&p.scenario) == base_key;
         let point_opt = if is_base { base_opt } else { opt };
         let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, point_opt)?;
         summarise(sc, k, &res, &mut summary);
