@@ -7,6 +7,7 @@
 //! engine relies on its invariants without re-validating.
 
 mod check;
+mod parts;
 mod resolved;
 mod spec;
 mod sweep;
@@ -24,11 +25,10 @@ pub use spec::{
 };
 pub use sweep::SweepPoint;
 
-use crate::control::maneuver::{fig7b_keyframes, Hold, Maneuver, Trajectory};
+use crate::control::maneuver::Trajectory;
 use crate::control::{FollowerLaw, LeaderMode};
 use crate::estimate::{Configured, Model, ModelParts, Registry};
 use crate::framework::Framework;
-use crate::noise::{agent_covariance, meas_covariance, normalise_config};
 use check::{check_cov, err, matrix, rows, Keys};
 
 /// A validation error: the key (dotted path in the scenario file) and what is wrong.
@@ -146,7 +146,7 @@ pub struct Scenario {
     comm: CommSpec,
     fault_spec: FaultSpec,
     faults: FaultPlan,
-    maneuver: Option<(ManeuverSpec, Arc<dyn Trajectory>)>,
+    maneuver: Option<parts::Planned>,
     metrics: MetricsSpec,
     metric_edge: Option<usize>,
     sweep: Option<SweepSpec>,
@@ -214,55 +214,9 @@ impl Scenario {
         let keys = Keys::Toml;
         let fw = check::build_framework(&spec.framework, framework_file)?;
         let dim = fw.dim();
-        let n = fw.agents();
         let s = &spec.sim;
-        let init_mean = match &spec.init.mean {
-            Some(m) if m.len() != dim => {
-                return Err(err("init.mean", format!("must have dim = {dim} entries")))
-            }
-            Some(m) if m.iter().any(|v| !v.is_finite()) => {
-                return Err(err("init.mean", "has a non-finite entry"))
-            }
-            Some(m) => m.clone(),
-            None => vec![0.0; dim],
-        };
-        let init_cov = match &spec.init.cov {
-            Some(c) => matrix("init.cov", c, dim)?,
-            None => DMatrix::identity(dim, dim),
-        };
-        let nz = &spec.noise;
-        for (key, v) in [("noise.sigma_w", nz.sigma_w), ("noise.sigma_v", nz.sigma_v)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(err(key, format!("must be a finite number ≥ 0, got {v}")));
-            }
-        }
-        if !(nz.meas_corr.is_finite() && nz.meas_corr.abs() < 1.0) {
-            return Err(err(
-                "noise.meas_corr",
-                format!("must lie in (−1, 1), got {}", nz.meas_corr),
-            ));
-        }
-        if let Some(l) = nz.kernel.length() {
-            if !(l.is_finite() && l > 0.0) {
-                return Err(err("noise.kernel.length", format!("must be > 0, got {l}")));
-            }
-        }
-        let q = match &nz.process_cov {
-            Some(q) => matrix("noise.process_cov", q, n * dim)?,
-            None => {
-                let pts = if nz.normalise {
-                    normalise_config(fw.config(), dim)
-                } else {
-                    fw.config().to_vec()
-                };
-                let qa = agent_covariance(&nz.kernel, &pts, dim);
-                qa.kronecker(&DMatrix::identity(dim, dim)) * (nz.sigma_w * nz.sigma_w)
-            }
-        };
-        let r = match &nz.meas_cov {
-            Some(r) => matrix("noise.meas_cov", r, dim)?,
-            None => meas_covariance(nz.sigma_v, nz.meas_corr, dim),
-        };
+        let (init_mean, init_cov) = parts::spec_init(&spec.init, dim)?;
+        let (q, r) = parts::spec_noise(&spec.noise, &fw)?;
         check_cov(keys.key("meas_cov"), &r)?;
         let r = vec![r; fw.graph().num_edges()];
         Self::finish(Draft {
@@ -328,43 +282,8 @@ impl Scenario {
         }
         let init_cov = matrix("init_cov", &r.init_cov, dim)?;
         let q = matrix("process_cov", &r.process_cov, r.agents * dim)?;
-        if r.meas_cov.len() != r.edges.len() {
-            return Err(err(
-                "meas_cov",
-                format!("needs one matrix per directed edge ({})", r.edges.len()),
-            ));
-        }
-        let mut meas = Vec::with_capacity(r.edges.len());
-        for (e, m) in r.meas_cov.iter().enumerate() {
-            let key = format!("meas_cov[{e}]");
-            let m = matrix(&key, m, dim)?;
-            check_cov(&key, &m)?;
-            meas.push(m);
-        }
-        let estimators = match &r.estimator_specs {
-            Some(t) => {
-                if t.len() != r.estimators.len() {
-                    return Err(err(
-                        "estimator_specs",
-                        "needs one entry per label in `estimators`",
-                    ));
-                }
-                for (k, (spec, label)) in t.iter().zip(&r.estimators).enumerate() {
-                    if spec.get("label").and_then(|l| l.as_str()) != Some(label.as_str()) {
-                        return Err(err(
-                            &format!("estimator_specs[{k}].label"),
-                            format!("must equal `estimators[{k}]` = `{label}`"),
-                        ));
-                    }
-                }
-                t.clone()
-            }
-            None => r
-                .estimators
-                .iter()
-                .map(|s| EstimatorEntry::kind(s).0)
-                .collect(),
-        };
+        let meas = parts::resolved_meas(r, dim)?;
+        let estimators = parts::resolved_estimators(r)?;
         let mut control = r.control.clone().unwrap_or_default();
         if r.control.is_none() {
             control.follower_gain = r.follower_gain.unwrap_or(1.0);
@@ -412,144 +331,27 @@ impl Scenario {
         let k = d.keys;
         let fw = d.framework;
         let dim = fw.dim();
-        let n = fw.agents();
         check::sim(k, d.dt, d.steps, d.runs, d.samples, d.every, d.paths_run)?;
         check::per_decade(k, "sim.reports_per_decade", d.reports_per_decade)?;
         check::per_decade(k, "sim.paths_per_decade", d.paths_per_decade)?;
         check_cov(k.key("init_cov"), &d.init_cov)?;
         check_cov(k.key("process_cov"), &d.q)?;
         check::representable(k, &d.init_mean, &d.init_cov, &d.q, &d.r, d.steps, d.dt)?;
-        // Communication.
-        if !(0.0..=1.0).contains(&d.comm.p_fail) {
-            return Err(err(
-                k.key("comm.p_fail"),
-                format!("must lie in [0, 1], got {}", d.comm.p_fail),
-            ));
-        }
-        if let Some(ar) = &d.comm.ar {
-            ar.check(dim).map_err(|m| err(k.key("comm.ar"), m))?;
-            check::ar_representable(k, ar, d.steps, d.dt)?;
-        }
-        // Control.
+        parts::comm(k, &d.comm, dim, d.steps, d.dt)?;
         let c = &d.control;
-        for (key, v) in [
-            ("control.follower_gain", c.follower_gain),
-            ("control.leader_gain", c.leader_gain),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(err(k.key(key), format!("must be > 0, got {v}")));
-            }
-        }
-        let law = match c.law {
-            LawSpec::Static {} => FollowerLaw::Static {
-                gain: c.follower_gain,
-            },
-            LawSpec::Pi { alpha, eta } => {
-                let alpha = alpha.unwrap_or(c.follower_gain);
-                let eta = eta.unwrap_or(1e-3);
-                if !(alpha.is_finite() && alpha > 0.0 && eta.is_finite() && eta >= 0.0) {
-                    return Err(err(
-                        k.key("control.law"),
-                        format!("pi needs α > 0 and η ≥ 0, got α = {alpha}, η = {eta}"),
-                    ));
-                }
-                FollowerLaw::Pi { alpha, eta }
-            }
-            LawSpec::VaryingVelocity {} => {
-                let g = fw.graph();
-                let w = fw.edge_weights();
-                for i in (0..n).filter(|i| !fw.leaders().contains(i)) {
-                    let gamma: f64 = g.edges_of(i).map(|e| w[e]).sum();
-                    if gamma.abs() < 1e-9 {
-                        return Err(err(
-                            k.key("control.law"),
-                            format!(
-                                "varying-velocity divides by γ_i = Σ_j l_ij, which is {gamma:.3e} for agent {i}"
-                            ),
-                        ));
-                    }
-                }
-                FollowerLaw::VaryingVelocity
-            }
-        };
-        let leader_spec = c.leaders.unwrap_or(if d.maneuver.is_some() {
-            LeaderSpec::Target
-        } else {
-            LeaderSpec::Distance
-        });
-        let leaders = if fw.leaders().is_empty() {
-            None
-        } else {
-            Some(match leader_spec {
-                LeaderSpec::Distance => {
-                    fw.check_leader_clique()
-                        .map_err(|e| err(k.key("framework.leaders"), e.to_string()))?;
-                    LeaderMode::Distance {
-                        gain: c.leader_gain,
-                    }
-                }
-                LeaderSpec::Target => LeaderMode::Target,
-            })
-        };
+        let law = parts::follower_law(k, c, &fw)?;
+        let (leader_spec, leaders) = parts::leaders(k, c, &fw, d.maneuver.is_some())?;
         let mut control = c.clone();
         control.leaders = Some(leader_spec);
         let feedback = match c.feedback {
             FeedbackSpec::Estimates => Feedback::Estimates,
             FeedbackSpec::Truth => Feedback::Truth,
         };
-        // Maneuver.
-        let maneuver = match &d.maneuver {
-            None => None,
-            Some(m) => {
-                let frames = match &m.keyframes {
-                    KeyframesSpec::Preset(p) if p == "garkf-fig7b" => fig7b_keyframes(dim),
-                    KeyframesSpec::Preset(p) if p == "hold" => Vec::new(),
-                    KeyframesSpec::Preset(p) => {
-                        return Err(err(
-                            k.key("maneuver.keyframes"),
-                            format!("unknown maneuver `{p}` (known: garkf-fig7b, hold)"),
-                        ))
-                    }
-                    KeyframesSpec::List(l) => l.clone(),
-                };
-                let bad = |e: crate::control::maneuver::ManeuverError| {
-                    err(k.key("maneuver.keyframes"), e.to_string())
-                };
-                let traj: Arc<dyn Trajectory> = match (frames.is_empty(), dim) {
-                    (true, _) => Arc::new(Hold),
-                    (false, 2) => Arc::new(Maneuver::<2>::new(&frames).map_err(bad)?),
-                    (false, 3) => Arc::new(Maneuver::<3>::new(&frames).map_err(bad)?),
-                    (false, d) => {
-                        return Err(err(
-                            k.key("maneuver.keyframes"),
-                            format!("maneuvers are defined for D = 2 and 3, got D = {d}"),
-                        ))
-                    }
-                };
-                Some((m.clone(), traj))
-            }
-        };
-        if maneuver.is_some() && leader_spec == LeaderSpec::Distance {
-            return Err(err(
-                k.key("control.leaders"),
-                "a [maneuver] is tracked by target leaders: set `leaders = \"target\"` (or drop the maneuver)",
-            ));
-        }
-        if leader_spec == LeaderSpec::Target && !fw.leaders().is_empty() {
-            check::affinely_independent(&fw).map_err(|m| err(k.key("framework.leaders"), m))?;
-        }
+        let maneuver = parts::maneuver(k, d.maneuver.as_ref(), dim)?;
+        parts::leaders_track(k, &fw, leader_spec, maneuver.is_some())?;
         // Faults.
         let faults = check::faults(k, &d.faults, &fw, d.dt)?;
-        // Metrics.
-        let metric_edge = match d.metrics.edge {
-            None => None,
-            Some([i, j]) => Some(fw.graph().edge_index(i, j).ok_or_else(|| {
-                err(
-                    k.key("metrics.edge"),
-                    format!("({i}, {j}) is not a directed edge of the graph"),
-                )
-            })?),
-        };
+        let metric_edge = parts::metric_edge(k, &d.metrics, &fw)?;
         let model = Model::new(ModelParts {
             q: d.q,
             r: d.r,
@@ -569,18 +371,7 @@ impl Scenario {
             &model,
             d.registry,
         )?;
-        // λ_max(L_ff) exactly, unless the cheap bound already shows the loop stable (large N).
-        let bound = lmax_followers_bound(model.framework());
-        let gain = match law {
-            FollowerLaw::Static { gain } => gain,
-            FollowerLaw::Pi { alpha, .. } => alpha,
-            FollowerLaw::VaryingVelocity => 0.0,
-        };
-        let lmax_ff = if model.agents() > 200 && d.dt * gain * bound < 1.0 {
-            bound
-        } else {
-            lmax_followers(model.framework())
-        };
+        let lmax_ff = parts::lmax_ff(&model, &law, d.dt);
         let sc = Self {
             name: d.name,
             description: d.description,
@@ -905,7 +696,7 @@ impl Scenario {
 }
 
 /// `λ_max(L_ff)`: the largest eigenvalue of the followers' block of the stress (computed once).
-fn lmax_followers(fw: &Framework) -> f64 {
+pub(super) fn lmax_followers(fw: &Framework) -> f64 {
     let followers: Vec<usize> = (0..fw.agents())
         .filter(|i| !fw.leaders().contains(i))
         .collect();
@@ -944,7 +735,7 @@ fn leader_rigidity_lmax(fw: &Framework) -> Option<f64> {
 }
 
 /// An upper bound of `λ_max(L_ff)` (Gershgorin: the largest absolute row sum), cheap for any N.
-fn lmax_followers_bound(fw: &Framework) -> f64 {
+pub(super) fn lmax_followers_bound(fw: &Framework) -> f64 {
     let l = fw.laplacian();
     let leaders = fw.leaders();
     (0..fw.agents())
@@ -1060,6 +851,73 @@ impl Scenario {
         Ok(())
     }
 
+    /// A metric plot's metric, inset window and `ratio_to` label.
+    fn check_metric_plot(
+        &self,
+        key: &str,
+        metric: &str,
+        inset: Option<[f64; 2]>,
+        ratio_to: Option<&str>,
+    ) -> Result<(), ScenarioError> {
+        if let Some(r) = ratio_to {
+            if !self.estimators.iter().any(|e| e.label() == r) {
+                let labels: Vec<&str> = self.estimators.iter().map(|e| e.label()).collect();
+                return Err(err(
+                    &format!("{key}.ratio_to"),
+                    format!("`{r}` is not an estimator label (labels: {labels:?})"),
+                ));
+            }
+        }
+        let known = self.metric_names();
+        if !known.contains(&metric) {
+            return Err(err(
+                &format!("{key}.metric"),
+                format!("unknown metric `{metric}`; this scenario reports {known:?}"),
+            ));
+        }
+        if let Some([a, b]) = inset {
+            let end = self.steps as f64 * self.model.dt();
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && a < b && b <= end) {
+                return Err(err(
+                    &format!("{key}.inset"),
+                    format!("must be [from, to] with 0 ≤ from < to ≤ {end} s, got [{a}, {b}]"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A plot's `estimators` (each once) and `legend` name estimator labels of this scenario.
+    fn check_plot_labels(&self, key: &str, p: &PlotSpec) -> Result<(), ScenarioError> {
+        if let Some(es) = p.estimators() {
+            for (x, e) in es.iter().enumerate() {
+                if es[..x].contains(e) {
+                    return Err(err(
+                        &format!("{key}.estimators"),
+                        format!("`{e}` is listed twice"),
+                    ));
+                }
+                if !self.estimators.iter().any(|d| &d.label == e) {
+                    return Err(err(
+                        &format!("{key}.estimators"),
+                        format!("`{e}` is not an estimator label of this scenario"),
+                    ));
+                }
+            }
+        }
+        if let Some(l) = p.legend() {
+            for e in l.keys() {
+                if !self.estimators.iter().any(|d| &d.label == e) {
+                    return Err(err(
+                        &format!("{key}.legend"),
+                        format!("`{e}` is not an estimator label of this scenario"),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     fn check_plots(&self, k: Keys) -> Result<(), ScenarioError> {
         for (n, p) in self.plots.iter().enumerate() {
             let key = format!("{}[{n}]", k.key("plots"));
@@ -1078,34 +936,7 @@ impl Scenario {
                     inset,
                     ratio_to,
                     ..
-                } => {
-                    if let Some(r) = ratio_to {
-                        if !self.estimators.iter().any(|e| e.label() == r) {
-                            let labels: Vec<&str> =
-                                self.estimators.iter().map(|e| e.label()).collect();
-                            return Err(err(
-                                &format!("{key}.ratio_to"),
-                                format!("`{r}` is not an estimator label (labels: {labels:?})"),
-                            ));
-                        }
-                    }
-                    let known = self.metric_names();
-                    if !known.iter().any(|m| m == metric) {
-                        return Err(err(
-                            &format!("{key}.metric"),
-                            format!("unknown metric `{metric}`; this scenario reports {known:?}"),
-                        ));
-                    }
-                    if let Some([a, b]) = inset {
-                        let end = self.steps as f64 * self.model.dt();
-                        if !(a.is_finite() && b.is_finite() && *a >= 0.0 && a < b && *b <= end) {
-                            return Err(err(
-                                &format!("{key}.inset"),
-                                format!("must be [from, to] with 0 ≤ from < to ≤ {end} s, got [{a}, {b}]"),
-                            ));
-                        }
-                    }
-                }
+                } => self.check_metric_plot(&key, metric, *inset, ratio_to.as_deref())?,
                 PlotSpec::Inputs { agent, .. } => {
                     let n = self.model.agents();
                     if *agent >= n {
@@ -1120,32 +951,7 @@ impl Scenario {
                     sweep::check_plot(self, p, &key)?;
                 }
             }
-            if let Some(es) = p.estimators() {
-                for (x, e) in es.iter().enumerate() {
-                    if es[..x].contains(e) {
-                        return Err(err(
-                            &format!("{key}.estimators"),
-                            format!("`{e}` is listed twice"),
-                        ));
-                    }
-                    if !self.estimators.iter().any(|d| &d.label == e) {
-                        return Err(err(
-                            &format!("{key}.estimators"),
-                            format!("`{e}` is not an estimator label of this scenario"),
-                        ));
-                    }
-                }
-            }
-            if let Some(l) = p.legend() {
-                for e in l.keys() {
-                    if !self.estimators.iter().any(|d| &d.label == e) {
-                        return Err(err(
-                            &format!("{key}.legend"),
-                            format!("`{e}` is not an estimator label of this scenario"),
-                        ));
-                    }
-                }
-            }
+            self.check_plot_labels(&key, p)?;
         }
         Ok(())
     }
