@@ -464,67 +464,21 @@ pub(crate) fn solve(
     const MAX_ITER: usize = 150;
     let space = problem.space;
     let nb = problem.blocks.len();
-    let nrows = problem.rows.len();
-    let np = space.np();
-    let nu = (nb * np + nrows) as f64;
-    let bnorm = problem.b.norm();
+    let nu = (nb * space.np() + problem.rows.len()) as f64;
 
-    let mut y = y0;
-    let (s0, mut sl) = problem.slacks(&y);
-    if sl.iter().any(|&v| v <= 0.0) {
-        return None;
-    }
-    let mut fac: Vec<Factored> = Vec::with_capacity(nb);
-    for s in s0 {
-        fac.push(problem.factor(s)?);
-    }
-    let (mut x, mut xl) = match x0 {
-        Some(p) => (p.x, p.xl),
-        None => {
-            let s: Vec<DMatrix<f64>> = fac.iter().map(|f| f.s.clone()).collect();
-            problem.primal_start(&s, &sl)
-        }
-    };
-
-    let bounds_at = |y: &DVector<f64>,
-                     x: &[DMatrix<f64>],
-                     xl: &DVector<f64>,
-                     fac: &[Factored],
-                     sl: &DVector<f64>|
-     -> Bounds {
-        let gd: Vec<DVector<f64>> = x.iter().map(|xj| space.gather_diag(xj)).collect();
-        let tr: Vec<f64> = x.iter().map(|xj| xj.trace()).collect();
-        let rp = &problem.b - problem.a_op(&gd, &tr, xl);
-        let mut compl = xl.dot(sl);
-        for (xj, f) in x.iter().zip(fac) {
-            compl += xj.dot(&f.s);
-        }
-        let dobj = problem.objective(y);
-        Bounds {
-            dobj,
-            upper: dobj + compl.max(0.0) + y.dot(&rp).abs(),
-            pinf: rp.norm() / (1.0 + bnorm),
-        }
-    };
-
-    let mut bounds = bounds_at(&y, &x, &xl, &fac, &sl);
+    let Iterate {
+        mut y,
+        mut sl,
+        mut fac,
+        mut x,
+        mut xl,
+        mut xchol,
+    } = Iterate::start(problem, y0, x0)?;
     let jproj = space.affine_projector();
-    let mut xchol: Vec<Cholesky<f64, Dyn>> = x
-        .iter()
-        .map(|xj| dense::cholesky(xj + jproj))
-        .collect::<Option<Vec<_>>>()?;
-    let mut best_gap = f64::INFINITY;
-    let mut since_best = 0;
-    let mut tiny_steps = 0;
-    let mut lost_primal = 0;
-    let mut dobj_hist: Vec<f64> = Vec::new();
+    let mut bounds = bounds_at(problem, &y, &x, &xl, &fac, &sl);
+    let mut watch = Watch::default();
     let mut iterations = 0;
-    let finish = |y: DVector<f64>,
-                  bounds: Bounds,
-                  iterations: usize,
-                  status: Status,
-                  x: Vec<DMatrix<f64>>,
-                  xl: DVector<f64>| Outcome {
+    let finish = |y, bounds, iterations, status, x, xl| Outcome {
         y,
         bounds,
         iterations,
@@ -538,143 +492,269 @@ pub(crate) fn solve(
         if iterations >= MAX_ITER {
             return Some(finish(y, bounds, iterations, Status::MaxIterations, x, xl));
         }
-        let gap = bounds.upper - bounds.dobj;
-        if gap < 0.5 * best_gap {
-            best_gap = gap;
-            since_best = 0;
-        } else {
-            since_best += 1;
-        }
-        if bounds.pinf > PINF {
-            lost_primal += 1;
-        } else {
-            lost_primal = 0;
-        }
-        dobj_hist.push(bounds.dobj);
-        let k = dobj_hist.len();
-        // The dual objective stopped moving and the gap stopped shrinking: the numerical limit.
-        let frozen = k > 3
-            && (dobj_hist[k - 1] - dobj_hist[k - 4]).abs() <= 1e-10 * bounds.dobj.abs()
-            && since_best >= 3;
-        if since_best >= 8 || tiny_steps >= 2 || lost_primal >= 3 || frozen {
+        if watch.stalled(&bounds) {
             return Some(finish(y, bounds, iterations, Status::Stalled, x, xl));
         }
         iterations += 1;
 
         // μ and the Schur complement.
-        let mut xs = 0.0;
-        for (xj, f) in x.iter().zip(&fac) {
-            xs += xj.dot(&f.s);
-        }
-        xs += xl.dot(&sl);
-        let mu = xs / nu;
+        let mu = (x
+            .iter()
+            .zip(&fac)
+            .fold(0.0, |xs, (xj, f)| xs + xj.dot(&f.s))
+            + xl.dot(&sl))
+            / nu;
         let ratio = xl.component_div(&sl);
         let Some(schur) = schur(problem, &x, &fac, &ratio) else {
             return Some(finish(y, bounds, iterations, Status::Breakdown, x, xl));
         };
-        // Predictor: M Δy = b.
         let at = Point {
             x: &x,
             xl: &xl,
             fac: &fac,
             sl: &sl,
         };
-        let step_a = refined_step(problem, &schur, &at, &problem.b, 0.0, None);
-        let ap = step_a.max_primal(&xchol, &xl).min(1.0);
-        let ad = step_a.max_dual(&fac, &sl).min(1.0);
-        let mut xs_a = 0.0;
-        for j in 0..nb {
-            let xa = &x[j] + &step_a.dx[j] * ap;
-            let sa = &fac[j].s + &step_a.ds[j] * ad;
-            xs_a += xa.dot(&sa);
-        }
-        xs_a += (&xl + &step_a.dxl * ap).dot(&(&sl + &step_a.dsl * ad));
-        let sigma = ((xs_a / nu) / mu).clamp(0.0, 1.0).powi(3);
-
-        // Corrector with the second-order term ΔX_a ΔS_a S⁻¹.
-        let (dw_a, de0_a, _) = problem.dual_step(&step_a.dy);
-        let corr: Vec<DMatrix<f64>> = problem
-            .blocks
-            .iter()
-            .enumerate()
-            .map(|(j, b)| {
-                let t =
-                    space.mul_slack_step(&step_a.dx[j], b.sigma, dw_a.as_slice(), -b.eta * de0_a);
-                dense::par_mul(&t, &fac[j].inv)
-            })
-            .collect();
-        let corr_l = step_a.dxl.component_mul(&step_a.dsl).component_div(&sl);
-        let gd_inv: Vec<DVector<f64>> = fac.iter().map(|f| space.gather_diag(&f.inv)).collect();
-        let tr_inv: Vec<f64> = fac.iter().map(|f| f.inv.trace()).collect();
-        let inv_l = sl.map(|v| 1.0 / v);
-        let gd_corr: Vec<DVector<f64>> = corr.iter().map(|c| space.gather_diag(c)).collect();
-        let tr_corr: Vec<f64> = corr.iter().map(|c| c.trace()).collect();
-        let rhs = &problem.b - problem.a_op(&gd_inv, &tr_inv, &inv_l) * (sigma * mu)
-            + problem.a_op(&gd_corr, &tr_corr, &corr_l);
-        let step = refined_step(
-            problem,
-            &schur,
-            &at,
-            &rhs,
-            sigma * mu,
-            Some((&corr, &corr_l)),
-        );
-        let gamma = (0.9 + 0.09 * ap.min(ad)).min(0.99);
-        let ap = (gamma * step.max_primal(&xchol, &xl)).min(1.0);
-        let ad = (gamma * step.max_dual(&fac, &sl)).min(1.0);
-        if ap < 1e-9 && ad < 1e-9 {
-            tiny_steps += 1;
+        let (step, ap, ad) = predictor_corrector(problem, &schur, &at, &xchol, (mu, nu));
+        watch.tiny_steps = if ap < 1e-9 && ad < 1e-9 {
+            watch.tiny_steps + 1
         } else {
-            tiny_steps = 0;
-        }
-
-        // Update. Every step is checked by a factorisation (the Lanczos step length can
-        // overshoot the boundary slightly) and shortened by 0.8 until it passes; the dual slacks
-        // are recomputed from y (no drift).
-        let mut ap = ap;
-        let mut primal = None;
-        for _ in 0..30 {
-            let xn: Vec<DMatrix<f64>> = (0..nb)
-                .map(|j| dense::symmetrise(&x[j] + &step.dx[j] * ap))
-                .collect();
-            let xl_n = &xl + &step.dxl * ap;
-            let ch = xn
-                .iter()
-                .map(|m| dense::cholesky(m + jproj))
-                .collect::<Option<Vec<_>>>();
-            match ch {
-                Some(ch) if xl_n.iter().all(|&v| v > 0.0) => {
-                    primal = Some((xn, xl_n, ch));
-                    break;
-                }
-                _ => ap *= 0.8,
-            }
-        }
-        let mut ad = ad;
-        let mut dual = None;
-        for _ in 0..30 {
-            let y_new = &y + &step.dy * ad;
-            let (s_new, sl_new) = problem.slacks(&y_new);
-            if sl_new.iter().all(|&v| v > 0.0) {
-                let f = s_new
-                    .into_iter()
-                    .map(|s| problem.factor(s))
-                    .collect::<Option<Vec<_>>>();
-                if let Some(f) = f {
-                    dual = Some((y_new, sl_new, f));
-                    break;
-                }
-            }
-            ad *= 0.8;
-        }
-        let (Some((xn, xl_n, ch)), Some((y_new, sl_new, f))) = (primal, dual) else {
+            0
+        };
+        let (Some((xn, xl_n, ch)), Some((y_new, sl_new, f))) = (
+            primal_update(&x, &xl, &step, ap, jproj),
+            dual_update(problem, &y, &step, ad),
+        ) else {
             // Round-off puts every step on the boundary: keep the last (feasible) iterate.
             return Some(finish(y, bounds, iterations, Status::Stalled, x, xl));
         };
         (x, xl, xchol) = (xn, xl_n, ch);
         (y, sl, fac) = (y_new, sl_new, f);
-        bounds = bounds_at(&y, &x, &xl, &fac, &sl);
+        bounds = bounds_at(problem, &y, &x, &xl, &fac, &sl);
     }
+}
+
+/// A primal–dual iterate: `y` with its slacks (LP part `sl`, PSD blocks factorised), and
+/// `(X, x)` with the Cholesky factors of `X_j + J`.
+struct Iterate {
+    y: DVector<f64>,
+    sl: DVector<f64>,
+    fac: Vec<Factored>,
+    x: Vec<DMatrix<f64>>,
+    xl: DVector<f64>,
+    xchol: Vec<Cholesky<f64, Dyn>>,
+}
+
+impl Iterate {
+    /// The start: `y0` (`None` unless strictly feasible) and `x0`, or the mode's feasible
+    /// primal start.
+    fn start(problem: &Problem<'_>, y0: DVector<f64>, x0: Option<Primal>) -> Option<Self> {
+        let (s0, sl) = problem.slacks(&y0);
+        if sl.iter().any(|&v| v <= 0.0) {
+            return None;
+        }
+        let mut fac: Vec<Factored> = Vec::with_capacity(problem.blocks.len());
+        for s in s0 {
+            fac.push(problem.factor(s)?);
+        }
+        let (x, xl) = match x0 {
+            Some(p) => (p.x, p.xl),
+            None => {
+                let s: Vec<DMatrix<f64>> = fac.iter().map(|f| f.s.clone()).collect();
+                problem.primal_start(&s, &sl)
+            }
+        };
+        let jproj = problem.space.affine_projector();
+        let xchol = x
+            .iter()
+            .map(|xj| dense::cholesky(xj + jproj))
+            .collect::<Option<Vec<_>>>()?;
+        Some(Self {
+            y: y0,
+            sl,
+            fac,
+            x,
+            xl,
+            xchol,
+        })
+    }
+}
+
+/// The bounds at the iterate `(y, X, x)` with its dual slacks.
+fn bounds_at(
+    problem: &Problem<'_>,
+    y: &DVector<f64>,
+    x: &[DMatrix<f64>],
+    xl: &DVector<f64>,
+    fac: &[Factored],
+    sl: &DVector<f64>,
+) -> Bounds {
+    let space = problem.space;
+    let gd: Vec<DVector<f64>> = x.iter().map(|xj| space.gather_diag(xj)).collect();
+    let tr: Vec<f64> = x.iter().map(|xj| xj.trace()).collect();
+    let rp = &problem.b - problem.a_op(&gd, &tr, xl);
+    let mut compl = xl.dot(sl);
+    for (xj, f) in x.iter().zip(fac) {
+        compl += xj.dot(&f.s);
+    }
+    let dobj = problem.objective(y);
+    Bounds {
+        dobj,
+        upper: dobj + compl.max(0.0) + y.dot(&rp).abs(),
+        pinf: rp.norm() / (1.0 + problem.b.norm()),
+    }
+}
+
+/// When the method stops by itself: the gap not halved for 8 iterations, two tiny steps in a
+/// row, the primal infeasibility above [`PINF`] for 3, or the dual objective frozen with the
+/// gap not shrinking (the numerical limit).
+struct Watch {
+    best_gap: f64,
+    since_best: usize,
+    tiny_steps: usize,
+    lost_primal: usize,
+    dobj_hist: Vec<f64>,
+}
+
+impl Default for Watch {
+    fn default() -> Self {
+        Self {
+            best_gap: f64::INFINITY,
+            since_best: 0,
+            tiny_steps: 0,
+            lost_primal: 0,
+            dobj_hist: Vec::new(),
+        }
+    }
+}
+
+impl Watch {
+    /// Records the bounds of this iterate; whether the method has stalled.
+    fn stalled(&mut self, bounds: &Bounds) -> bool {
+        let gap = bounds.upper - bounds.dobj;
+        if gap < 0.5 * self.best_gap {
+            self.best_gap = gap;
+            self.since_best = 0;
+        } else {
+            self.since_best += 1;
+        }
+        if bounds.pinf > PINF {
+            self.lost_primal += 1;
+        } else {
+            self.lost_primal = 0;
+        }
+        self.dobj_hist.push(bounds.dobj);
+        let h = &self.dobj_hist;
+        let k = h.len();
+        // The dual objective stopped moving and the gap stopped shrinking: the numerical limit.
+        let frozen = k > 3
+            && (h[k - 1] - h[k - 4]).abs() <= 1e-10 * bounds.dobj.abs()
+            && self.since_best >= 3;
+        self.since_best >= 8 || self.tiny_steps >= 2 || self.lost_primal >= 3 || frozen
+    }
+}
+
+/// Mehrotra's predictor–corrector at `at`: the affine direction (`M Δy = b`), the centring
+/// `σ = (μ_a / μ)³`, and the corrected direction with the second-order term `ΔX_a ΔS_a S⁻¹`;
+/// returns it with its primal and dual step lengths (a share γ of the way to the boundary).
+fn predictor_corrector(
+    problem: &Problem<'_>,
+    schur: &Schur,
+    at: &Point<'_>,
+    xchol: &[Cholesky<f64, Dyn>],
+    (mu, nu): (f64, f64),
+) -> (Step, f64, f64) {
+    let space = problem.space;
+    let (x, xl, fac, sl) = (at.x, at.xl, at.fac, at.sl);
+    // Predictor: M Δy = b.
+    let step_a = refined_step(problem, schur, at, &problem.b, 0.0, None);
+    let ap = step_a.max_primal(xchol, xl).min(1.0);
+    let ad = step_a.max_dual(fac, sl).min(1.0);
+    let mut xs_a = 0.0;
+    for j in 0..problem.blocks.len() {
+        let xa = &x[j] + &step_a.dx[j] * ap;
+        let sa = &fac[j].s + &step_a.ds[j] * ad;
+        xs_a += xa.dot(&sa);
+    }
+    xs_a += (xl + &step_a.dxl * ap).dot(&(sl + &step_a.dsl * ad));
+    let sigma = ((xs_a / nu) / mu).clamp(0.0, 1.0).powi(3);
+
+    // Corrector with the second-order term ΔX_a ΔS_a S⁻¹.
+    let (dw_a, de0_a, _) = problem.dual_step(&step_a.dy);
+    let corr: Vec<DMatrix<f64>> = problem
+        .blocks
+        .iter()
+        .enumerate()
+        .map(|(j, b)| {
+            let t = space.mul_slack_step(&step_a.dx[j], b.sigma, dw_a.as_slice(), -b.eta * de0_a);
+            dense::par_mul(&t, &fac[j].inv)
+        })
+        .collect();
+    let corr_l = step_a.dxl.component_mul(&step_a.dsl).component_div(sl);
+    let gd_inv: Vec<DVector<f64>> = fac.iter().map(|f| space.gather_diag(&f.inv)).collect();
+    let tr_inv: Vec<f64> = fac.iter().map(|f| f.inv.trace()).collect();
+    let inv_l = sl.map(|v| 1.0 / v);
+    let gd_corr: Vec<DVector<f64>> = corr.iter().map(|c| space.gather_diag(c)).collect();
+    let tr_corr: Vec<f64> = corr.iter().map(|c| c.trace()).collect();
+    let rhs = &problem.b - problem.a_op(&gd_inv, &tr_inv, &inv_l) * (sigma * mu)
+        + problem.a_op(&gd_corr, &tr_corr, &corr_l);
+    let step = refined_step(problem, schur, at, &rhs, sigma * mu, Some((&corr, &corr_l)));
+    let gamma = (0.9 + 0.09 * ap.min(ad)).min(0.99);
+    let ap = (gamma * step.max_primal(xchol, xl)).min(1.0);
+    let ad = (gamma * step.max_dual(fac, sl)).min(1.0);
+    (step, ap, ad)
+}
+
+/// The primal update `(X, x) + a (ΔX, Δx)`, checked by a factorisation of each `X_j + J` (the
+/// Lanczos step length can overshoot the boundary slightly) and shortened by 0.8 until it
+/// passes; `None` after 30 tries.
+#[allow(clippy::type_complexity)]
+fn primal_update(
+    x: &[DMatrix<f64>],
+    xl: &DVector<f64>,
+    step: &Step,
+    mut ap: f64,
+    jproj: &DMatrix<f64>,
+) -> Option<(Vec<DMatrix<f64>>, DVector<f64>, Vec<Cholesky<f64, Dyn>>)> {
+    for _ in 0..30 {
+        let xn: Vec<DMatrix<f64>> = (0..x.len())
+            .map(|j| dense::symmetrise(&x[j] + &step.dx[j] * ap))
+            .collect();
+        let xl_n = xl + &step.dxl * ap;
+        let ch = xn
+            .iter()
+            .map(|m| dense::cholesky(m + jproj))
+            .collect::<Option<Vec<_>>>();
+        match ch {
+            Some(ch) if xl_n.iter().all(|&v| v > 0.0) => return Some((xn, xl_n, ch)),
+            _ => ap *= 0.8,
+        }
+    }
+    None
+}
+
+/// The dual update `y + a Δy`, its slacks recomputed from it (no drift) and factorised,
+/// shortened by 0.8 until they are positive definite; `None` after 30 tries.
+fn dual_update(
+    problem: &Problem<'_>,
+    y: &DVector<f64>,
+    step: &Step,
+    mut ad: f64,
+) -> Option<(DVector<f64>, DVector<f64>, Vec<Factored>)> {
+    for _ in 0..30 {
+        let y_new = y + &step.dy * ad;
+        let (s_new, sl_new) = problem.slacks(&y_new);
+        if sl_new.iter().all(|&v| v > 0.0) {
+            let f = s_new
+                .into_iter()
+                .map(|s| problem.factor(s))
+                .collect::<Option<Vec<_>>>();
+            if let Some(f) = f {
+                return Some((y_new, sl_new, f));
+            }
+        }
+        ad *= 0.8;
+    }
+    None
 }
 
 /// The factorised Schur complement.
