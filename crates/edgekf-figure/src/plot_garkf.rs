@@ -329,15 +329,7 @@ fn summary(
         return Err(StudyFigureError::SummaryWithoutSweep);
     };
     let share = metric.ends_with("_share");
-    let (yl, yu) = metric_axis(metric);
-    let y_axis = if log_y {
-        Axis::log(yl, yu)
-    } else if share {
-        // A little room beyond 0 and 1, so that a share of 1 is not drawn on the frame.
-        Axis::linear(yl, yu).with_range(-0.03, 1.03)
-    } else {
-        Axis::linear(yl, yu)
-    };
+    let y_axis = summary_axis(metric, log_y, share);
     let xl = if x_label.is_empty() {
         sw.parameter.clone()
     } else {
@@ -367,7 +359,6 @@ fn summary(
             if vals.iter().all(|(m, _)| m.is_nan()) {
                 continue;
             }
-            let y: Vec<f64> = vals.iter().map(|v| v.0).collect();
             let name = if several {
                 // Studies told apart by their graphs (Fig. 13: sparse and dense), not file names.
                 let g = ssc.framework().graph();
@@ -379,26 +370,8 @@ fn summary(
             } else {
                 l.clone()
             };
-            let mut c = Curve::new(name, x.clone(), y.clone())
-                .with_style(Style::line().marker(Marker::new(shapes[s_idx % shapes.len()], 9.0)));
-            // A share: ±1 standard error of the share (the per-run std / √runs), within [0, 1];
-            // a time average: ±1σ over the runs.
-            let scale = if share {
-                (ssw.base.runs.len().max(1) as f64).sqrt()
-            } else {
-                1.0
-            };
-            let lo = vals
-                .iter()
-                .map(|(m, s)| m - s.max(0.0) / scale)
-                .map(|v| if share { v.max(0.0) } else { v })
-                .collect();
-            let hi = vals
-                .iter()
-                .map(|(m, s)| m + s.max(0.0) / scale)
-                .map(|v| if share { v.min(1.0) } else { v })
-                .collect();
-            c = c.with_band(lo, hi);
+            let marker = Marker::new(shapes[s_idx % shapes.len()], 9.0);
+            let c = summary_curve(name, &x, &vals, marker, share.then(|| ssw.base.runs.len()));
             panel.curves.push(c);
         }
     }
@@ -413,11 +386,23 @@ fn summary(
             note = format!("{note}; off the top (diverged, > 10⁶ × the smallest mean): {off}");
         }
     }
+    let graphs: Vec<&Scenario> = studies.iter().map(|(_, ssc, _)| *ssc).collect();
+    Ok(summary_figure(title, panel, &graphs, share, note))
+}
+
+/// The summary panel with its note; with several studies, their graphs (Fig. 13a) beside it
+/// (Fig. 13b).
+fn summary_figure(
+    title: &str,
+    panel: Panel,
+    graphs: &[&Scenario],
+    share: bool,
+    note: String,
+) -> Figure {
     let drawn_over = overlaps(&panel.curves, 0.05);
-    let mut fig = if several {
-        // The graphs compared (Fig. 13a), beside the summary (Fig. 13b).
+    let mut fig = if graphs.len() > 1 {
         let mut f = Figure::new(title).with_size(1700, 620);
-        f.panels = studies.iter().map(|(_, ssc, _)| graph_panel(ssc)).collect();
+        f.panels = graphs.iter().map(|ssc| graph_panel(ssc)).collect();
         let b = if share {
             "(b) the share of runs that stay stable"
         } else {
@@ -430,7 +415,48 @@ fn summary(
         Figure::single(title, panel).with_note(note)
     };
     fig.notes.extend(drawn_over);
-    Ok(fig)
+    fig
+}
+
+/// The summary's y axis: log, or linear with a little room beyond 0 and 1 for a share (so that
+/// a share of 1 is not drawn on the frame).
+fn summary_axis(metric: &str, log_y: bool, share: bool) -> Axis {
+    let (yl, yu) = metric_axis(metric);
+    if log_y {
+        Axis::log(yl, yu)
+    } else if share {
+        Axis::linear(yl, yu).with_range(-0.03, 1.03)
+    } else {
+        Axis::linear(yl, yu)
+    }
+}
+
+/// One label's summary against the swept value, `vals` its (mean, std) per value, with its
+/// band: for a share of `runs` runs ±1 standard error of the share (the per-run std / √runs),
+/// within [0, 1]; for a time average ±1σ over the runs.
+fn summary_curve(
+    name: String,
+    x: &[f64],
+    vals: &[(f64, f64)],
+    marker: Marker,
+    share_of: Option<usize>,
+) -> Curve {
+    let y: Vec<f64> = vals.iter().map(|v| v.0).collect();
+    let share = share_of.is_some();
+    let scale = share_of.map_or(1.0, |runs| (runs.max(1) as f64).sqrt());
+    let lo = vals
+        .iter()
+        .map(|(m, s)| m - s.max(0.0) / scale)
+        .map(|v| if share { v.max(0.0) } else { v })
+        .collect();
+    let hi = vals
+        .iter()
+        .map(|(m, s)| m + s.max(0.0) / scale)
+        .map(|v| if share { v.min(1.0) } else { v })
+        .collect();
+    Curve::new(name, x.to_vec(), y)
+        .with_style(Style::line().marker(marker))
+        .with_band(lo, hi)
 }
 
 /// Diverged loops give means hundreds of decades above the rest, which would squash every other
