@@ -41,8 +41,20 @@ fn small(estimators: &str, extra: &str) -> String {
 /// The AR(1) input model of `rkf-ar` (thesis-fig6.2's).
 const AR: &str = "[comm.ar]\ncoeffs = [[0.975, 0.979]]\nnoise_var = [0.0115, 0.0119]\n";
 
+/// The bound of every wait for the swarms expected to succeed: the default 20 s is a user's
+/// answer to "is anybody there?", but a 2-core CI host starting a dozen processes under load once
+/// took longer than that for an agent to join (a flake, not a finding). The tests of the timeout
+/// itself pass their own `--timeout-s`.
+const PATIENT: [&str; 2] = ["--timeout-s", "120"];
+
+/// Runs `edgekf ARGS`; a `swarm` without its own `--timeout-s` gets [`PATIENT`].
 fn run(args: &[&str]) -> Output {
-    Command::new(exe()).args(args).output().expect("edgekf")
+    let mut cmd = Command::new(exe());
+    cmd.args(args);
+    if args.first() == Some(&"swarm") && !args.contains(&"--timeout-s") {
+        cmd.args(PATIENT);
+    }
+    cmd.output().expect("edgekf")
 }
 
 fn ok(o: &Output) {
@@ -173,6 +185,7 @@ fn started_swarm(t: &Scratch, name: &str, extra: &[&str]) -> (Child, PathBuf, St
     args.extend(extra.iter().map(|s| s.to_string()));
     let child = Command::new(exe())
         .args(&args)
+        .args(PATIENT)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -236,6 +249,7 @@ fn kill_9_from_outside_is_a_departure() {
             "--period-ms",
             "2",
         ])
+        .args(PATIENT)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -462,7 +476,9 @@ fn real_packet_loss_in_a_network_namespace() {
     let o = Command::new(&script)
         .args(["25", "--", exe(), "swarm", sc.to_str().unwrap(), "--out"])
         .arg(&out)
-        .args(["--lossy", "--grace-ms", "3", "--after-ready"])
+        .args(["--lossy", "--grace-ms", "3"])
+        .args(PATIENT)
+        .arg("--after-ready")
         .arg(format!("{} --rule 25", script.display()))
         .output()
         .unwrap();

@@ -6,9 +6,10 @@
 //! reported step (twice: the chunks' and the assembled copy), the recorded paths, and every
 //! chunk's state. Time is a rough model calibrated on this project's measurements (≈ 1 ns per
 //! normal draw, ≈ 0.25 ns per floating-point operation of the loops, and the measured time of
-//! the CA filters' kernels; 2 cores); it is meant to tell seconds from hours, not to be precise,
-//! and errs on the long side. `edgekf bench --cost` sets it beside the measured time of every
-//! shipped scenario's estimators.
+//! the CA filters' kernels; 2 cores); it is meant to tell seconds from hours, not to be precise:
+//! measured, it is 0.8–2.4× the actual time for studies of 0.2 s or more and 0.5–4.4× for
+//! shorter ones. `edgekf bench --cost` sets it beside the measured time of every shipped
+//! scenario's estimators.
 
 use super::sweep::resolved_key;
 use super::world::Factor;
