@@ -79,8 +79,78 @@ impl Theorem1Report {
 
     /// Computes the report for designed observers with `Q = q I` and coupling gain `gamma`.
     pub fn compute(model: &Model, observers: &[RobotObserver], q: f64, gamma: f64) -> Self {
-        let n = model.n;
-        let dim = model.dim();
+        let omega = Omega::of(model, observers, q);
+        let zeta_sup = min_sym_eigenvalue(&omega.inf);
+        let (lambda_min, xi) = consensus_terms(model, observers);
+        let lam = if lambda_min.is_finite() {
+            lambda_min
+        } else {
+            1.0
+        };
+        let condition24 = zeta_sup > 0.0;
+        let condition25_sup = zeta_sup * gamma * lam - gamma * gamma * xi * xi / 4.0;
+        let condition25 = condition24 && condition25_sup > 0.0;
+        let m_of = |zeta: f64, tau_term: f64| {
+            Matrix2::new(
+                zeta,
+                -gamma * xi / 2.0,
+                -gamma * xi / 2.0,
+                gamma * lam - tau_term,
+            )
+        };
+        let mut witness = None;
+        let mut m_matrix = m_of(zeta_sup, 0.0);
+        if condition25 {
+            // δ = τ = v, doubled from 1: ζ_min(δ) increases with δ and 1/(2τ) decreases.
+            let mut v = 1.0_f64;
+            for _ in 0..200 {
+                let zeta = min_sym_eigenvalue(&(&omega.inf - &omega.delta_dir / v));
+                let mm = m_of(zeta, 1.0 / (2.0 * v));
+                if zeta > 0.0 && mm.determinant() > 0.0 && mm[(1, 1)] > 0.0 {
+                    witness = Some((v, v));
+                    m_matrix = mm;
+                    break;
+                }
+                v *= 2.0;
+            }
+        }
+        let abscissa =
+            |sign| spectral_abscissa(&error_system_matrix(model, observers, gamma, sign));
+        Self {
+            zeta_sup,
+            lambda_min,
+            xi,
+            gamma,
+            condition24,
+            condition25_sup,
+            condition25,
+            witness,
+            m_matrix,
+            omega_inf: omega.inf,
+            p_inv_sq: omega.delta_dir,
+            p_inv: omega.p_inv,
+            psi: omega.psi,
+            error_abscissa: abscissa(ConsensusSign::Eq19),
+            error_abscissa_eq10: abscissa(ConsensusSign::Eq10),
+        }
+    }
+}
+
+/// The parts of `Ω(δ) = Ω(∞) − δ⁻¹ diag(P̄_i⁻²)` (eq. 24, corrected sign).
+struct Omega {
+    /// `Ω(∞)`.
+    inf: DMatrix<f64>,
+    /// `diag(P̄_i⁻²)`.
+    delta_dir: DMatrix<f64>,
+    /// `diag(P̄_i⁻¹)`.
+    p_inv: DMatrix<f64>,
+    /// `Ψ = k₂ diag(P̄_i⁻¹) diag(Z_iᵀ) D̄ diag(Z_i)`.
+    psi: DMatrix<f64>,
+}
+
+impl Omega {
+    fn of(model: &Model, observers: &[RobotObserver], q: f64) -> Self {
+        let (n, dim) = (model.n, model.dim());
         let p_inv: Vec<DMatrix<f64>> = observers
             .iter()
             .map(|o| {
@@ -101,16 +171,7 @@ impl Theorem1Report {
             })
             .collect();
         let p_inv_sq: Vec<DMatrix<f64>> = p_inv.iter().map(|pi| pi * pi).collect();
-        let zs: Vec<DMatrix<f64>> = observers
-            .iter()
-            .map(|o| o.decomposition.z.clone())
-            .collect();
-        let ws: Vec<DMatrix<f64>> = observers
-            .iter()
-            .map(|o| o.decomposition.w.clone())
-            .collect();
-        let diag_z = block_diag(&zs);
-        let diag_w = block_diag(&ws);
+        let diag_z = diag_of(observers, |o| &o.decomposition.z);
         // D̄ = 1_n ⊗ [D; 0].
         let mut d_bar = DMatrix::zeros(n * dim, n * dim);
         for i in 0..n {
@@ -119,87 +180,48 @@ impl Theorem1Report {
                 .copy_from(&model.d);
         }
         let psi = block_diag(&p_inv) * model.k2 * diag_z.transpose() * &d_bar * &diag_z;
-        let omega_inf = block_diag(&base) - (&psi + psi.transpose());
-        let delta_dir = block_diag(&p_inv_sq);
-        let zeta_sup = min_sym_eigenvalue(&omega_inf);
-        let lc = nalgebra::DMatrix::from_fn(n * dim, n * dim, |r, c| {
-            if r % dim == c % dim {
-                model.l_c[(r / dim, c / dim)]
-            } else {
-                0.0
-            }
-        });
-        let ww = diag_w.transpose() * &lc * &diag_w;
-        let lambda_min = if ww.nrows() == 0 {
-            f64::INFINITY
-        } else {
-            min_sym_eigenvalue(&ww)
-        };
-        let wz = diag_w.transpose() * &lc * &diag_z;
-        let xi = if wz.nrows() == 0 || wz.ncols() == 0 {
-            0.0
-        } else {
-            wz.singular_values().iter().copied().fold(0.0, f64::max)
-        };
-        let lam = if lambda_min.is_finite() {
-            lambda_min
-        } else {
-            1.0
-        };
-        let condition24 = zeta_sup > 0.0;
-        let condition25_sup = zeta_sup * gamma * lam - gamma * gamma * xi * xi / 4.0;
-        let condition25 = condition24 && condition25_sup > 0.0;
-        let m_of = |zeta: f64, tau_term: f64| {
-            Matrix2::new(
-                zeta,
-                -gamma * xi / 2.0,
-                -gamma * xi / 2.0,
-                gamma * lam - tau_term,
-            )
-        };
-        let mut witness = None;
-        let mut m_matrix = m_of(zeta_sup, 0.0);
-        if condition25 {
-            let mut v = 1.0_f64;
-            for _ in 0..200 {
-                let zeta = min_sym_eigenvalue(&(&omega_inf - &delta_dir / v));
-                let mm = m_of(zeta, 1.0 / (2.0 * v));
-                if zeta > 0.0 && mm.determinant() > 0.0 && mm[(1, 1)] > 0.0 {
-                    witness = Some((v, v));
-                    m_matrix = mm;
-                    break;
-                }
-                v *= 2.0;
-            }
-        }
-        let error_abscissa = spectral_abscissa(&error_system_matrix(
-            model,
-            observers,
-            gamma,
-            ConsensusSign::Eq19,
-        ));
-        let error_abscissa_eq10 = spectral_abscissa(&error_system_matrix(
-            model,
-            observers,
-            gamma,
-            ConsensusSign::Eq10,
-        ));
         Self {
-            zeta_sup,
-            lambda_min,
-            xi,
-            gamma,
-            condition24,
-            condition25_sup,
-            condition25,
-            witness,
-            m_matrix,
-            omega_inf,
-            p_inv_sq: delta_dir,
+            inf: block_diag(&base) - (&psi + psi.transpose()),
+            delta_dir: block_diag(&p_inv_sq),
             p_inv: block_diag(&p_inv),
             psi,
-            error_abscissa,
-            error_abscissa_eq10,
         }
     }
+}
+
+/// `diag(M_i)` of one matrix per observer.
+fn diag_of(
+    observers: &[RobotObserver],
+    m: impl Fn(&RobotObserver) -> &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let blocks: Vec<DMatrix<f64>> = observers.iter().map(|o| m(o).clone()).collect();
+    block_diag(&blocks)
+}
+
+/// `λ_min` of `diag(W_iᵀ)(𝓛_c ⊗ I_N) diag(W_i)` (∞ when empty) and
+/// `ξ = ‖diag(W_iᵀ)(𝓛_c ⊗ I_N) diag(Z_i)‖₂` (0 when empty), the consensus terms of (25).
+fn consensus_terms(model: &Model, observers: &[RobotObserver]) -> (f64, f64) {
+    let (n, dim) = (model.n, model.dim());
+    let diag_z = diag_of(observers, |o| &o.decomposition.z);
+    let diag_w = diag_of(observers, |o| &o.decomposition.w);
+    let lc = DMatrix::from_fn(n * dim, n * dim, |r, c| {
+        if r % dim == c % dim {
+            model.l_c[(r / dim, c / dim)]
+        } else {
+            0.0
+        }
+    });
+    let ww = diag_w.transpose() * &lc * &diag_w;
+    let lambda_min = if ww.nrows() == 0 {
+        f64::INFINITY
+    } else {
+        min_sym_eigenvalue(&ww)
+    };
+    let wz = diag_w.transpose() * &lc * &diag_z;
+    let xi = if wz.nrows() == 0 || wz.ncols() == 0 {
+        0.0
+    } else {
+        wz.singular_values().iter().copied().fold(0.0, f64::max)
+    };
+    (lambda_min, xi)
 }

@@ -126,92 +126,7 @@ pub(crate) fn solve(
     mode: &Mode,
     tol_gap: f64,
 ) -> Result<Outcome, DesignError> {
-    let m = space.z.ncols();
-    let nl = space.z.nrows();
-    let np = space.np();
-    let (svec_a, idx) = svec_basis(space);
-    let nvec = idx.len();
-    let svec_i = DVector::from_iterator(nvec, idx.iter().map(|&(i, j)| f64::from(i == j)));
-    let z = &space.z;
-
-    let penalised: Vec<usize> = match mode {
-        Mode::L1 { penalised, .. } => (0..nl).filter(|&l| penalised[l]).collect(),
-        _ => Vec::new(),
-    };
-    let nx = match mode {
-        Mode::Condition | Mode::Gap { .. } => m + 1,
-        Mode::L1 { .. } => m + penalised.len(),
-    };
-    let mut q = vec![0.0; nx];
-    // Row blocks of A and b, with their cones.
-    let mut blocks: Vec<(DMatrix<f64>, DVector<f64>)> = Vec::new();
-    let mut cones: Vec<SupportedConeT<f64>> = Vec::new();
-    // Lower LMI, M(c) − s I ⪰ 0 (Gap) or M(c) − I ⪰ 0: b − A x = svec(M(c)) − s svec(I).
-    let mut a_lo = DMatrix::zeros(nvec, nx);
-    a_lo.columns_mut(0, m).copy_from(&(-&svec_a));
-    let b_lo = match mode {
-        Mode::Gap { .. } => {
-            a_lo.column_mut(m).copy_from(&svec_i);
-            q[m] = -1.0;
-            DVector::zeros(nvec)
-        }
-        Mode::Condition | Mode::L1 { .. } => -&svec_i,
-    };
-    blocks.push((a_lo, b_lo));
-    cones.push(SupportedConeT::PSDTriangleConeT(np));
-    // Upper LMI, t I − M(c) ⪰ 0 (Condition) or κ̄ I − M(c) ⪰ 0 (L1).
-    let mut a_up = DMatrix::zeros(nvec, nx);
-    a_up.columns_mut(0, m).copy_from(&svec_a);
-    match mode {
-        Mode::Condition => {
-            a_up.column_mut(m).copy_from(&(-&svec_i));
-            q[m] = 1.0;
-            blocks.push((a_up, DVector::zeros(nvec)));
-            cones.push(SupportedConeT::PSDTriangleConeT(np));
-        }
-        Mode::L1 { kappa, .. } => {
-            blocks.push((a_up, &svec_i * *kappa));
-            cones.push(SupportedConeT::PSDTriangleConeT(np));
-        }
-        Mode::Gap { .. } => {}
-    }
-    match mode {
-        Mode::Condition => {}
-        Mode::Gap { lambda_bar, wmax } => {
-            // λ̄ − s ≥ 0, w̄ − (Z c)_l ≥ 0, w̄ + (Z c)_l ≥ 0.
-            let mut a = DMatrix::zeros(1 + 2 * nl, nx);
-            let mut b = DVector::from_element(1 + 2 * nl, *wmax);
-            a[(0, m)] = 1.0;
-            b[0] = *lambda_bar;
-            a.view_mut((1, 0), (nl, m)).copy_from(z);
-            a.view_mut((1 + nl, 0), (nl, m)).copy_from(&(-z));
-            blocks.push((a, b));
-            cones.push(SupportedConeT::NonnegativeConeT(1 + 2 * nl));
-        }
-        Mode::L1 { .. } => {
-            // p_k − (Z c)_l ≥ 0 and p_k + (Z c)_l ≥ 0; objective Σ p.
-            let np_ = penalised.len();
-            let mut a = DMatrix::zeros(2 * np_, nx);
-            for (k, &l) in penalised.iter().enumerate() {
-                q[m + k] = 1.0;
-                a.view_mut((k, 0), (1, m)).copy_from(&z.row(l));
-                a.view_mut((np_ + k, 0), (1, m)).copy_from(&(-z.row(l)));
-                a[(k, m + k)] = -1.0;
-                a[(np_ + k, m + k)] = -1.0;
-            }
-            blocks.push((a, DVector::zeros(2 * np_)));
-            cones.push(SupportedConeT::NonnegativeConeT(2 * np_));
-        }
-    }
-    let rows: usize = blocks.iter().map(|(a, _)| a.nrows()).sum();
-    let mut a = DMatrix::zeros(rows, nx);
-    let mut b = Vec::with_capacity(rows);
-    let mut r0 = 0;
-    for (ab, bb) in &blocks {
-        a.view_mut((r0, 0), ab.shape()).copy_from(ab);
-        b.extend(bb.iter().copied());
-        r0 += ab.nrows();
-    }
+    let (q, a, b, cones) = program(space, mode);
     let settings = DefaultSettings::<f64> {
         verbose: false,
         tol_gap_abs: tol_gap,
@@ -221,7 +136,7 @@ pub(crate) fn solve(
         direct_solve_method: "faer".into(),
         ..DefaultSettings::default()
     };
-    let p = CscMatrix::zeros((nx, nx));
+    let p = CscMatrix::zeros((q.len(), q.len()));
     let fail = |status: &'static str, iterations: usize| DesignError::Solver {
         status: SolverStatus::Clarabel(status),
         iterations,
@@ -234,10 +149,11 @@ pub(crate) fn solve(
     match sol.status {
         ClStatus::Solved => {}
         ClStatus::PrimalInfeasible if matches!(mode, Mode::Condition) => {
+            let np = space.np();
             return Err(DesignError::NotUniversallyRigid(format!(
                 "no positive semidefinite stress of rank N − D − 1 = {np} exists on this graph \
                  (Clarabel certifies that no stress has Q L Qᵀ ⪰ I)"
-            )))
+            )));
         }
         other => return Err(fail(status_name(other), iterations)),
     }
@@ -246,6 +162,112 @@ pub(crate) fn solve(
         iterations,
         gap: (sol.obj_val - sol.obj_val_dual).abs(),
     })
+}
+
+/// A row block of Clarabel's `b − A x ∈ K` and its cone.
+type Block = (DMatrix<f64>, DVector<f64>, SupportedConeT<f64>);
+
+/// `mode` on `space` as Clarabel's conic program: the objective `q`, the stacked `A` and `b`,
+/// and the cones of their row blocks (the LMIs, then the linear inequalities).
+fn program(
+    space: &StressSpace,
+    mode: &Mode,
+) -> (Vec<f64>, DMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
+    let m = space.z.ncols();
+    let nl = space.z.nrows();
+    let penalised: Vec<usize> = match mode {
+        Mode::L1 { penalised, .. } => (0..nl).filter(|&l| penalised[l]).collect(),
+        _ => Vec::new(),
+    };
+    let nx = match mode {
+        Mode::Condition | Mode::Gap { .. } => m + 1,
+        Mode::L1 { .. } => m + penalised.len(),
+    };
+    let mut q = vec![0.0; nx];
+    let mut blocks = lmi_blocks(space, mode, &mut q);
+    blocks.extend(linear_block(space, mode, &penalised, &mut q));
+    let rows: usize = blocks.iter().map(|(a, _, _)| a.nrows()).sum();
+    let mut a = DMatrix::zeros(rows, nx);
+    let mut b = Vec::with_capacity(rows);
+    let mut cones = Vec::with_capacity(blocks.len());
+    let mut r0 = 0;
+    for (ab, bb, cone) in blocks {
+        a.view_mut((r0, 0), ab.shape()).copy_from(&ab);
+        b.extend(bb.iter().copied());
+        r0 += ab.nrows();
+        cones.push(cone);
+    }
+    (q, a, b, cones)
+}
+
+/// The LMI blocks, filling their part of the objective `q` (of length `nx`): the lower
+/// `M(c) − s I ⪰ 0` (Gap) or `M(c) − I ⪰ 0`, as `b − A x = svec(M(c)) − s svec(I)`; the upper
+/// `t I − M(c) ⪰ 0` (Condition) or `κ̄ I − M(c) ⪰ 0` (L1).
+fn lmi_blocks(space: &StressSpace, mode: &Mode, q: &mut [f64]) -> Vec<Block> {
+    let (m, nx, np) = (space.z.ncols(), q.len(), space.np());
+    let (svec_a, idx) = svec_basis(space);
+    let nvec = idx.len();
+    let svec_i = DVector::from_iterator(nvec, idx.iter().map(|&(i, j)| f64::from(i == j)));
+    let psd = || SupportedConeT::PSDTriangleConeT(np);
+    let mut a_lo = DMatrix::zeros(nvec, nx);
+    a_lo.columns_mut(0, m).copy_from(&(-&svec_a));
+    let b_lo = match mode {
+        Mode::Gap { .. } => {
+            a_lo.column_mut(m).copy_from(&svec_i);
+            q[m] = -1.0;
+            DVector::zeros(nvec)
+        }
+        Mode::Condition | Mode::L1 { .. } => -&svec_i,
+    };
+    let mut blocks = vec![(a_lo, b_lo, psd())];
+    let mut a_up = DMatrix::zeros(nvec, nx);
+    a_up.columns_mut(0, m).copy_from(&svec_a);
+    match mode {
+        Mode::Condition => {
+            a_up.column_mut(m).copy_from(&(-&svec_i));
+            q[m] = 1.0;
+            blocks.push((a_up, DVector::zeros(nvec), psd()));
+        }
+        Mode::L1 { kappa, .. } => blocks.push((a_up, &svec_i * *kappa, psd())),
+        Mode::Gap { .. } => {}
+    }
+    blocks
+}
+
+/// The linear inequalities, filling their part of the objective: for Gap `λ̄ − s ≥ 0`,
+/// `w̄ ∓ (Z c)_l ≥ 0`; for L1 `p_k ∓ (Z c)_l ≥ 0` over the `penalised` links, objective `Σ p`.
+fn linear_block(
+    space: &StressSpace,
+    mode: &Mode,
+    penalised: &[usize],
+    q: &mut [f64],
+) -> Option<Block> {
+    let (z, m, nl, nx) = (&space.z, space.z.ncols(), space.z.nrows(), q.len());
+    match mode {
+        Mode::Condition => None,
+        Mode::Gap { lambda_bar, wmax } => {
+            let mut a = DMatrix::zeros(1 + 2 * nl, nx);
+            let mut b = DVector::from_element(1 + 2 * nl, *wmax);
+            a[(0, m)] = 1.0;
+            b[0] = *lambda_bar;
+            a.view_mut((1, 0), (nl, m)).copy_from(z);
+            a.view_mut((1 + nl, 0), (nl, m)).copy_from(&(-z));
+            Some((a, b, SupportedConeT::NonnegativeConeT(1 + 2 * nl)))
+        }
+        Mode::L1 { .. } => {
+            let np_ = penalised.len();
+            let mut a = DMatrix::zeros(2 * np_, nx);
+            for (k, &l) in penalised.iter().enumerate() {
+                q[m + k] = 1.0;
+                a.view_mut((k, 0), (1, m)).copy_from(&z.row(l));
+                a.view_mut((np_ + k, 0), (1, m)).copy_from(&(-z.row(l)));
+                a[(k, m + k)] = -1.0;
+                a[(np_ + k, m + k)] = -1.0;
+            }
+            let zeros = DVector::zeros(2 * np_);
+            Some((a, zeros, SupportedConeT::NonnegativeConeT(2 * np_)))
+        }
+    }
 }
 
 #[cfg(test)]

@@ -193,14 +193,42 @@ fn conditioning_ipm(
     rel: f64,
     not_rigid: impl Fn(f64) -> DesignError,
 ) -> Result<Conditioned, DesignError> {
-    let m = space.z.ncols();
     let floor = 1.0 / max_condition(space.agents());
-    let breakdown = |iterations| DesignError::Solver {
-        status: SolverStatus::NumericalBreakdown,
-        iterations,
-    };
+    let p1 = phase1(space, floor)?;
+    if p1.s_upper < floor {
+        return Err(not_rigid(p1.s_upper));
+    }
+    if p1.s <= floor {
+        // Neither a stress with s > 1e-8 nor a bound below it: both methods stalled in between.
+        return Err(DesignError::Solver {
+            status: SolverStatus::Stalled {
+                lower: p1.s,
+                upper: p1.s_upper,
+            },
+            iterations: p1.iterations,
+        });
+    }
+    Ok(phase2(space, rel, p1))
+}
 
-    // Phase 1.
+/// Where phase 1 of [`conditioning_ipm`] ended.
+struct Phase1 {
+    /// Its start, the barrier's fallback start in phase 2.
+    y0: DVector<f64>,
+    /// The best point `(c, s)`, its `s` and the certified upper bound on `s*`.
+    y: DVector<f64>,
+    s: f64,
+    s_upper: f64,
+    /// The primal iterate to warm-start phase 2 (none when the barrier found the point).
+    warm: Option<ipm::Primal>,
+    solver: &'static str,
+    iterations: usize,
+}
+
+/// Phase 1: `max s` s.t. `s Π ⪯ L(w) ⪯ Π` to a relative gap of ½ (or an upper bound below
+/// `floor`), the barrier method rescuing a stalled solve.
+fn phase1(space: &StressSpace, floor: f64) -> Result<Phase1, DesignError> {
+    let m = space.z.ncols();
     let p1 = ipm::Problem::new(space, &Mode::Condition);
     let mut y0 = DVector::zeros(m + 1);
     y0[m] = -1.0;
@@ -208,7 +236,10 @@ fn conditioning_ipm(
     let out1 = ipm::solve(&p1, y0.clone(), None, |_, b| {
         b.pinf <= PINF && phase1_done(b.dobj, b.upper)
     })
-    .ok_or(breakdown(0))?;
+    .ok_or(DesignError::Solver {
+        status: SolverStatus::NumericalBreakdown,
+        iterations: 0,
+    })?;
     let mut iterations = out1.iterations;
     let mut s_upper = if out1.bounds.pinf <= PINF {
         out1.bounds.upper
@@ -227,21 +258,30 @@ fn conditioning_ipm(
             }
         }
     }
-    if s_upper < floor {
-        return Err(not_rigid(s_upper));
-    }
-    if s1 <= floor {
-        // Neither a stress with s > 1e-8 nor a bound below it: both methods stalled in between.
-        return Err(DesignError::Solver {
-            status: SolverStatus::Stalled {
-                lower: s1,
-                upper: s_upper,
-            },
-            iterations,
-        });
-    }
+    Ok(Phase1 {
+        y0,
+        y: y1,
+        s: s1,
+        s_upper,
+        warm,
+        solver,
+        iterations,
+    })
+}
 
-    // Phase 2.
+/// Phase 2: `min t` s.t. `Π ⪯ L(w) ⪯ t Π` from phase 1's point scaled to `λ_min = 1`, to
+/// `rel`; the barrier method polishes a solve that stalls far from it.
+fn phase2(space: &StressSpace, rel: f64, p1: Phase1) -> Conditioned {
+    let m = space.z.ncols();
+    let Phase1 {
+        y0,
+        y: y1,
+        s: s1,
+        s_upper,
+        warm,
+        mut solver,
+        mut iterations,
+    } = p1;
     let p2 = ipm::Problem::ratio(space);
     let mut y2 = &y1 / s1;
     y2[m] = 1.0 / s1;
@@ -284,13 +324,13 @@ fn conditioning_ipm(
             }
         }
     }
-    Ok(Conditioned {
+    Conditioned {
         w: &space.z * best_y.rows(0, m),
         ratio: best_t,
         iterations,
         solver,
         gap: ((best_t - t_lo) / t_lo).max(0.0),
-    })
+    }
 }
 
 /// The barrier method on the s-form `max s` s.t. `s Π ⪯ L(w) ⪯ Π`, from `start` (or `fallback`
@@ -385,8 +425,6 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
         StressSpace::new(&flat, candidate.dim, &links)?
     };
     let expected_rank = candidate.config.len() - candidate.dim - 1;
-    // Below 1e-10 of the largest weight a link changes L by less than the checks' tolerance.
-    const DROP: f64 = 1e-10;
     match options.objective {
         SdpObjective::Conditioning => {
             let best = conditioned(
@@ -398,20 +436,8 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                 options.solver,
                 options.rel_tol,
             )?;
-            finish(
-                candidate,
-                &links,
-                best.w.as_slice(),
-                &space,
-                Finish {
-                    drop_rel: DROP,
-                    normalise: true,
-                    method: "sdp",
-                    newton_steps: best.iterations,
-                    solver: best.solver,
-                    gap: best.gap,
-                },
-            )
+            let f = sdp_finish(true, best.iterations, best.solver, best.gap);
+            finish(candidate, &links, best.w.as_slice(), &space, f)
         }
         SdpObjective::ThesisGap {
             lambda_bar,
@@ -427,59 +453,97 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
                     "the graph carries no nonzero equilibrium stress".into(),
                 ));
             }
-            let mode = Mode::Gap {
-                lambda_bar,
-                wmax: weight_bound,
-            };
-            let m = space.z.ncols();
-            let scale = lambda_bar.min(weight_bound);
-            let floor = scale / max_condition(candidate.config.len());
-            let rel = options.rel_tol;
-            let (y, lower, upper, iterations, name) = match options.solver {
-                SdpSolver::Ipm => {
-                    let mut y0 = DVector::zeros(m + 1);
-                    y0[m] = -lambda_bar.min(1.0);
-                    let out = ipm::solve_robust(&space, mode, y0, |lo, up| {
-                        (lo > 0.0 && up - lo <= rel * lo) || up < floor
-                    })?;
-                    (out.y, out.lower, out.upper, out.iterations, out.solver)
-                }
-                #[cfg(feature = "clarabel")]
-                SdpSolver::Clarabel => {
-                    // Clarabel's gap is relative to max(1, |λ|), i.e. absolute for λ < 1: at
-                    // most rel_tol (1e-6), and never coarser than the acceptance floor allows.
-                    let tol = options.rel_tol.min(CLARABEL_GAP.max(1e-2 * floor));
-                    let out = conic::solve(&space, &mode, tol)?;
-                    let s = out.x[m];
-                    (out.x, s, s + out.gap, out.iterations, "clarabel")
-                }
-            };
-            if upper < floor {
+            let floor = lambda_bar.min(weight_bound) / max_condition(candidate.config.len());
+            let gap = solve_gap(&space, lambda_bar, weight_bound, floor, options)?;
+            if gap.upper < floor {
                 return Err(DesignError::NotUniversallyRigid(format!(
                     "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph"
                 )));
             }
-            if lower <= floor {
+            if gap.lower <= floor {
                 return Err(DesignError::Solver {
-                    status: SolverStatus::Stalled { lower, upper },
-                    iterations,
+                    status: SolverStatus::Stalled {
+                        lower: gap.lower,
+                        upper: gap.upper,
+                    },
+                    iterations: gap.iterations,
                 });
             }
-            let w = &space.z * y.rows(0, m);
-            finish(
-                candidate,
-                &links,
-                w.as_slice(),
-                &space,
-                Finish {
-                    drop_rel: DROP,
-                    normalise: false,
-                    method: "sdp",
-                    newton_steps: iterations,
-                    solver: name,
-                    gap: ((upper - lower) / lower).max(0.0),
-                },
-            )
+            let w = &space.z * gap.y.rows(0, space.z.ncols());
+            let rel_gap = ((gap.upper - gap.lower) / gap.lower).max(0.0);
+            let f = sdp_finish(false, gap.iterations, gap.solver, rel_gap);
+            finish(candidate, &links, w.as_slice(), &space, f)
+        }
+    }
+}
+
+/// How an SDP design is finished: links below 1e-10 of the largest weight dropped (they change
+/// L by less than the checks' tolerance), named "sdp".
+fn sdp_finish(normalise: bool, newton_steps: usize, solver: &'static str, gap: f64) -> Finish {
+    Finish {
+        drop_rel: 1e-10,
+        normalise,
+        method: "sdp",
+        newton_steps,
+        solver,
+        gap,
+    }
+}
+
+/// The thesis SDP (3.5) solved: its solution `(c, s)`, the bounds on the optimal `λ` and the
+/// solver's iterations and name.
+struct GapSolution {
+    y: DVector<f64>,
+    lower: f64,
+    upper: f64,
+    iterations: usize,
+    solver: &'static str,
+}
+
+/// Solves the thesis SDP (3.5) (`max s` with `λ̄ ≥ s`, `|w_l| ≤ w̄`) on `space`, stopping at the
+/// relative tolerance or once the upper bound falls below `floor` (no stress).
+fn solve_gap(
+    space: &StressSpace,
+    lambda_bar: f64,
+    weight_bound: f64,
+    floor: f64,
+    options: &SdpOptions,
+) -> Result<GapSolution, DesignError> {
+    let mode = Mode::Gap {
+        lambda_bar,
+        wmax: weight_bound,
+    };
+    let m = space.z.ncols();
+    let rel = options.rel_tol;
+    match options.solver {
+        SdpSolver::Ipm => {
+            let mut y0 = DVector::zeros(m + 1);
+            y0[m] = -lambda_bar.min(1.0);
+            let out = ipm::solve_robust(space, mode, y0, |lo, up| {
+                (lo > 0.0 && up - lo <= rel * lo) || up < floor
+            })?;
+            Ok(GapSolution {
+                y: out.y,
+                lower: out.lower,
+                upper: out.upper,
+                iterations: out.iterations,
+                solver: out.solver,
+            })
+        }
+        #[cfg(feature = "clarabel")]
+        SdpSolver::Clarabel => {
+            // Clarabel's gap is relative to max(1, |λ|), i.e. absolute for λ < 1: at most
+            // rel_tol (1e-6), and never coarser than the acceptance floor allows.
+            let tol = rel.min(CLARABEL_GAP.max(1e-2 * floor));
+            let out = conic::solve(space, &mode, tol)?;
+            let s = out.x[m];
+            Ok(GapSolution {
+                y: out.x,
+                lower: s,
+                upper: s + out.gap,
+                iterations: out.iterations,
+                solver: "clarabel",
+            })
         }
     }
 }

@@ -76,6 +76,7 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     let space = StressSpace::new(&flat, candidate.dim, &links)?;
     let expected_rank = n - candidate.dim - 1;
     let rel_tol = super::sdp::SdpOptions::default().rel_tol;
+    // Step 1: the best conditioning on all candidates.
     let first = conditioned(
         &flat,
         candidate.dim,
@@ -85,55 +86,16 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
         options.solver,
         rel_tol,
     )?;
-    // Scale the start so that its spectrum [λ_min, κ0 λ_min] sits strictly inside [1, κ̄]:
-    // λ_min = √slack > 1 and κ0 √slack < slack κ0 = κ̄.
-    let w0 = &first.w;
-    let eig = space.spectrum(w0.as_slice());
-    let lmin = eig[0];
-    let kappa_start = eig[eig.len() - 1] / lmin;
-    let kappa_bar = options.slack * first.ratio.max(kappa_start);
-    let w_start = w0 * (options.slack.sqrt() / lmin);
-    // Links among the leaders are not penalised: when the candidates hold them, the design keeps
-    // them (the distance-based leader law needs the leaders linked; target tracking does not).
+    // Step 2: the ℓ1 problem, from a strictly feasible start.
     let is_leader_link =
         |&(i, j): &(usize, usize)| candidate.leaders.contains(&i) && candidate.leaders.contains(&j);
     let penalised: Vec<bool> = links.iter().map(|l| !is_leader_link(l)).collect();
-    let mode = Mode::L1 {
-        kappa: kappa_bar,
-        penalised: penalised.clone(),
-    };
-    let m = space.z.ncols();
-    let npen = penalised.iter().filter(|&&p| p).count();
-    let mean_abs = w_start.iter().map(|v| v.abs()).sum::<f64>() / links.len() as f64;
-    let mut y0 = DVector::zeros(m + npen);
-    y0.rows_mut(0, m).copy_from(&(space.z.tr_mul(&w_start)));
-    let mut k = 0;
-    for (l, &p) in penalised.iter().enumerate() {
-        if p {
-            y0[m + k] = w_start[l].abs() + mean_abs;
-            k += 1;
-        }
-    }
-    let (y, l1_steps, l1_gap) = match options.solver {
-        SdpSolver::Ipm => {
-            // Every iterate is a strictly feasible stress with spectrum in [1, κ̄], so a solve
-            // that stops short of the tolerance still gives a valid (less sparse) support.
-            let out = ipm::solve_robust(&space, mode, y0, |lo, up| up - lo <= 1e-7 * lo.abs())?;
-            let gap = (out.upper - out.lower) / out.lower.abs().max(f64::MIN_POSITIVE);
-            (out.y, out.iterations, gap)
-        }
-        #[cfg(feature = "clarabel")]
-        SdpSolver::Clarabel => {
-            // Clarabel's default gap tolerance, 1e-8 relative to max(1, ℓ1 norm): at least as
-            // tight as the IPM's 1e-7 relative.
-            let out = conic::solve(&space, &mode, 1e-8)?;
-            let gap = out.gap / out.x.rows(m, npen).sum().abs().max(f64::MIN_POSITIVE);
-            (out.x, out.iterations, gap)
-        }
-    };
-    let w = &space.z * y.rows(0, m);
-    let wmax = w.amax();
+    let (mode, y0) = l1_start(&space, &first.w, first.ratio, penalised, options.slack);
+    let (y, l1_steps, l1_gap) = solve_l1(&space, mode, y0, options.solver)?;
+    let w = &space.z * y.rows(0, space.z.ncols());
     let mut steps = first.iterations + l1_steps;
+    // Step 3: threshold and polish, the threshold lowered tenfold at most three times.
+    let wmax = w.amax();
     let mut threshold = options.threshold;
     for _ in 0..4 {
         let support: Vec<(usize, usize)> = links
@@ -152,20 +114,8 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
         match polished {
             Ok((sub, best)) => {
                 steps += best.iterations;
-                return finish(
-                    candidate,
-                    &support,
-                    best.w.as_slice(),
-                    &sub,
-                    Finish {
-                        drop_rel: 1e-10,
-                        normalise: true,
-                        method: "sparse",
-                        newton_steps: steps,
-                        solver: best.solver,
-                        gap: best.gap,
-                    },
-                );
+                let f = sparse_finish(steps, best.solver, best.gap);
+                return finish(candidate, &support, best.w.as_slice(), &sub, f);
             }
             Err(DesignError::NotUniversallyRigid(_) | DesignError::Graph(_)) => {
                 threshold *= 0.1;
@@ -175,18 +125,81 @@ pub fn design(candidate: &Candidate, options: &SparseOptions) -> Result<Design, 
     }
     // The ℓ1 weights themselves are a valid stress on all candidates; return them if no
     // thresholded support could be certified (the gap is then the ℓ1 solve's).
-    finish(
-        candidate,
-        &links,
-        w.as_slice(),
-        &space,
-        Finish {
-            drop_rel: 1e-10,
-            normalise: true,
-            method: "sparse",
-            newton_steps: steps,
-            solver: first.solver,
-            gap: l1_gap,
-        },
-    )
+    let f = sparse_finish(steps, first.solver, l1_gap);
+    finish(candidate, &links, w.as_slice(), &space, f)
+}
+
+/// How a sparse design is finished: tiny weights dropped, normalised, named "sparse".
+fn sparse_finish(newton_steps: usize, solver: &'static str, gap: f64) -> Finish {
+    Finish {
+        drop_rel: 1e-10,
+        normalise: true,
+        method: "sparse",
+        newton_steps,
+        solver,
+        gap,
+    }
+}
+
+/// The ℓ1 problem of step 2 (its spectrum band `[1, κ̄]`, `κ̄ = slack · max(κ*, κ_start)`) and
+/// a strictly feasible start: the best-conditioned weights `w0` (ratio `kappa_best`) scaled so
+/// that their spectrum `[λ_min, κ0 λ_min]` sits strictly inside the band (λ_min = √slack > 1 and
+/// κ0 √slack < slack κ0 ≤ κ̄), each penalised link's bound `t_l = |w_l| + mean |w|`.
+fn l1_start(
+    space: &StressSpace,
+    w0: &DVector<f64>,
+    kappa_best: f64,
+    penalised: Vec<bool>,
+    slack: f64,
+) -> (Mode, DVector<f64>) {
+    let eig = space.spectrum(w0.as_slice());
+    let lmin = eig[0];
+    let kappa_start = eig[eig.len() - 1] / lmin;
+    let kappa_bar = slack * kappa_best.max(kappa_start);
+    let w_start = w0 * (slack.sqrt() / lmin);
+    let m = space.z.ncols();
+    let npen = penalised.iter().filter(|&&p| p).count();
+    let mean_abs = w_start.iter().map(|v| v.abs()).sum::<f64>() / w_start.len() as f64;
+    let mut y0 = DVector::zeros(m + npen);
+    y0.rows_mut(0, m).copy_from(&(space.z.tr_mul(&w_start)));
+    let mut k = 0;
+    for (l, &p) in penalised.iter().enumerate() {
+        if p {
+            y0[m + k] = w_start[l].abs() + mean_abs;
+            k += 1;
+        }
+    }
+    let mode = Mode::L1 {
+        kappa: kappa_bar,
+        penalised,
+    };
+    (mode, y0)
+}
+
+/// Solves the ℓ1 problem from `y0`: the solution `(c, t)`, the solver's iterations and its
+/// relative duality gap.
+fn solve_l1(
+    space: &StressSpace,
+    mode: Mode,
+    y0: DVector<f64>,
+    solver: SdpSolver,
+) -> Result<(DVector<f64>, usize, f64), DesignError> {
+    match solver {
+        SdpSolver::Ipm => {
+            // Every iterate is a strictly feasible stress with spectrum in [1, κ̄], so a solve
+            // that stops short of the tolerance still gives a valid (less sparse) support.
+            let out = ipm::solve_robust(space, mode, y0, |lo, up| up - lo <= 1e-7 * lo.abs())?;
+            let gap = (out.upper - out.lower) / out.lower.abs().max(f64::MIN_POSITIVE);
+            Ok((out.y, out.iterations, gap))
+        }
+        #[cfg(feature = "clarabel")]
+        SdpSolver::Clarabel => {
+            // Clarabel's default gap tolerance, 1e-8 relative to max(1, ℓ1 norm): at least as
+            // tight as the IPM's 1e-7 relative.
+            let (m, npen) = (space.z.ncols(), y0.len() - space.z.ncols());
+            let out = conic::solve(space, &mode, 1e-8)?;
+            let gap = out.gap / out.x.rows(m, npen).sum().abs().max(f64::MIN_POSITIVE);
+            Ok((out.x, out.iterations, gap))
+        }
+    }
 }
