@@ -5,7 +5,7 @@
 use std::sync::OnceLock;
 
 use edgekf::noise::Kernel;
-use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
+use edgekf::scenario::{EstimatorEntry, Scenario};
 use edgekf::sim::{self, Observer, Results};
 use edgekf_io::reproductions::{self, Entry};
 use serde::Deserialize;
@@ -153,7 +153,7 @@ impl Study {
             }
             None => e.text,
         };
-        let mut spec: ScenarioSpec = toml::from_str(text).map_err(|x| bad(x.to_string()))?;
+        let mut spec = edgekf_io::spec_from_toml(text).map_err(|x| bad(x.to_string()))?;
         spec.plots.clear();
         if let Some(g) = ed.gain {
             spec.control.follower_gain = g;
@@ -221,7 +221,7 @@ impl Study {
             Some(k) => e.companions.get(k).map_or(e.text, |c| c.1),
             None => e.text,
         };
-        toml::from_str::<ScenarioSpec>(text)
+        edgekf_io::spec_from_toml(text)
             .ok()
             .and_then(|s| s.sweep)
             .is_some_and(|s| s.stable.is_some())
@@ -250,11 +250,12 @@ impl Study {
         match self.kind {
             Kind::Slam => {
                 let e = entry(self.reproduction)?;
-                let spec: edgekf_slam::ScenarioSpec =
-                    toml::from_str(e.text).map_err(|x| ClaimsError::Scenario {
+                let spec = edgekf_slam::ScenarioSpec::from_toml(e.text).map_err(|x| {
+                    ClaimsError::Scenario {
                         study: self.id.to_string(),
                         message: x.to_string(),
-                    })?;
+                    }
+                })?;
                 let sc = spec.validate().map_err(|x| ClaimsError::Scenario {
                     study: self.id.to_string(),
                     message: x.to_string(),

@@ -40,7 +40,7 @@ pub struct BenchArgs {
 pub fn run(args: &BenchArgs) -> Result<()> {
     let pool = crate::pool(args.threads)?;
     let text = registry::find("eusipco-fig4a").expect("registered").text;
-    let base: ScenarioSpec = toml::from_str(text)?;
+    let base = edgekf_io::spec_from_toml(text)?;
     println!(
         "closed-loop speed on the EUSIPCO scenario (N = 10, M = 60, T = 10), {} runs × {} steps, {} thread(s)",
         args.runs,
@@ -107,7 +107,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// estimators (each estimator closes its own loop).
 fn garkf(args: &BenchArgs, pool: &rayon::ThreadPool) -> Result<()> {
     let text = registry::find("garkf-fig11").expect("registered").text;
-    let mut base: ScenarioSpec = toml::from_str(text)?;
+    let mut base = edgekf_io::spec_from_toml(text)?;
     base.plots.clear();
     base.sweep = None;
     base.sim.runs = args.runs;
@@ -166,7 +166,7 @@ fn cost_model(pool: &rayon::ThreadPool) -> Result<()> {
                 continue;
             }
             seen.push(file);
-            let base: ScenarioSpec = toml::from_str(text)?;
+            let base = edgekf_io::spec_from_toml(text)?;
             let fw = registry::framework_of(file, &base)?;
             for est in &base.estimators {
                 let mut spec = base.clone();

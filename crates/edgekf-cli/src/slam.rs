@@ -86,8 +86,8 @@ fn parse(source: &str, text: &str) -> Result<ScenarioSpec> {
             None => bail!("{source}: key `schema` is missing (a resolved SLAM scenario has \"schema\": \"{SCHEMA}\")"),
         }
     } else {
-        let spec: ScenarioSpec =
-            toml::from_str(text).map_err(|e| anyhow!("{source}: {}", e.to_string().trim_end()))?;
+        let spec = ScenarioSpec::from_toml(text)
+            .map_err(|e| anyhow!("{source}: {}", e.to_string().trim_end()))?;
         match spec.kind.as_deref() {
             Some(KIND) => Ok(spec),
             Some(other) => bail!("{source}: key `kind` must be \"{KIND}\", found \"{other}\""),

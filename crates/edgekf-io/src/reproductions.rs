@@ -315,7 +315,7 @@ pub const ENTRIES: &[Entry] = &[
 
 /// A shipped scenario text, checked, its `framework.file` taken from [`FRAMEWORKS`].
 fn scenario_of(file: &str, text: &str) -> Result<Scenario, ShippedError> {
-    let spec: ScenarioSpec = toml::from_str(text).map_err(|source| ShippedError::Toml {
+    let spec = crate::spec_from_toml(text).map_err(|source| ShippedError::Toml {
         file: file.into(),
         source,
     })?;

@@ -405,6 +405,18 @@ struct Grid {
 }
 
 impl ScenarioSpec {
+    /// Parses a SLAM scenario file's text (TOML), refusing unknown keys by name; nothing is
+    /// checked beyond the keys and their types ([`ScenarioSpec::validate`] does that).
+    ///
+    /// The same as `toml::from_str::<ScenarioSpec>`, compiled once here instead of in every
+    /// caller and test binary (serde's deserialiser is generic; docs/build-times.md).
+    ///
+    /// # Errors
+    /// TOML syntax, an unknown key or a value of the wrong type, with its line and column.
+    pub fn from_toml(text: &str) -> Result<Self, toml::de::Error> {
+        toml::from_str(text)
+    }
+
     /// Validates the spec and designs the observers.
     ///
     /// The sections are checked in the order of the file — tags, robots and landmarks, landmark

@@ -223,7 +223,7 @@ fn care_without_stabilising_solution_is_an_error() {
 #[test]
 fn unknown_keys_are_rejected_by_the_parser() {
     let text = common::FIG3.replace("k1 = 1.0", "k1 = 1.0\nk3 = 2.0");
-    let e = toml::from_str::<ScenarioSpec>(&text).unwrap_err();
+    let e = ScenarioSpec::from_toml(&text).unwrap_err();
     assert!(e.to_string().contains("unknown field `k3`"), "{e}");
 }
 

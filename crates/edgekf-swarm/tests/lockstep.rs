@@ -5,7 +5,7 @@
 use std::net::{TcpListener, UdpSocket};
 use std::time::Duration;
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Quiet};
 use edgekf_swarm::agent_node::{run_agent, AgentOptions};
 use edgekf_swarm::world_node::{run_world, WorldOptions};
@@ -34,7 +34,7 @@ fn scenario(estimators: &str, extra: &str) -> Scenario {
         "name = \"swarm-test\"\nestimators = [{estimators}]\n[framework]\npreset = \"hexagon\"\n\
          [sim]\nsteps = 120\nruns = 1\nevery = 10\n[noise]\nsigma_v = 0.1\nsigma_w = 0.001\n{extra}"
     );
-    let spec: ScenarioSpec = toml::from_str(&text).expect("TOML");
+    let spec = edgekf_io::spec_from_toml(&text).expect("TOML");
     Scenario::from_spec(&spec, None).expect("valid")
 }
 

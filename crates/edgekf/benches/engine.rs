@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use edgekf::estimate::batch::{joseph_step, settled, Mat};
 use edgekf::rng::Streams;
-use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
+use edgekf::scenario::{EstimatorEntry, Scenario};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
@@ -26,7 +26,7 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 const EUSIPCO: &str = include_str!("../../../scenarios/eusipco.toml");
 
 fn scenario(estimators: &[&str], runs: usize, steps: usize) -> Scenario {
-    let mut spec: ScenarioSpec = toml::from_str(EUSIPCO).expect("shipped scenario");
+    let mut spec = edgekf_io::spec_from_toml(EUSIPCO).expect("shipped scenario");
     spec.plots.clear();
     spec.estimators = estimators.iter().map(|k| EstimatorEntry::kind(k)).collect();
     spec.sim.runs = runs;

@@ -6,7 +6,7 @@
 //! cargo run --release -p edgekf --example ral_rank_tol
 //! ```
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Quiet, Results};
 use edgekf_io::reproductions;
 
@@ -35,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "rank_tol", "θ err 5–30 s", "θ err 30–60 s", "δ 0–60 s", "ε 30–60 s", "completed"
         );
         for tol in [1e-6, 1e-2, 0.05, 0.1, 0.2, 0.3] {
-            let mut spec: ScenarioSpec = toml::from_str(e.text)?;
+            let mut spec = edgekf_io::spec_from_toml(e.text)?;
             spec.plots.clear();
             for est in &mut spec.estimators {
                 if est.0.get("kind").and_then(|k| k.as_str()) == Some("garkf") {

@@ -12,7 +12,7 @@
 
 mod common;
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::Results;
 
 /// Per-run window means of `metric` of estimator `label` over the reports with time in
@@ -81,7 +81,7 @@ fn ratio_se(a: &[f64], b: &[f64]) -> (f64, f64) {
 }
 
 fn scenario(text: &str) -> Scenario {
-    let spec: ScenarioSpec = toml::from_str(text).expect("TOML");
+    let spec = edgekf_io::spec_from_toml(text).expect("TOML");
     Scenario::from_spec(&spec, None).expect("valid")
 }
 

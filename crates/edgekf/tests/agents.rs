@@ -21,7 +21,7 @@ fn label_kind(e: &EstimatorEntry) -> String {
 
 /// A shipped scenario at one run and `steps` steps, its decentralised estimators only.
 fn shipped(file: &str, text: &str, steps: usize) -> Option<Scenario> {
-    let mut spec: ScenarioSpec = toml::from_str(text).ok()?;
+    let mut spec = edgekf_io::spec_from_toml(text).ok()?;
     let fw = edgekf_io::reproductions::framework_of(file, &spec).expect("framework");
     spec.estimators
         .retain(|e| !CENTRAL.contains(&label_kind(e).as_str()));
@@ -103,7 +103,7 @@ fn every_decentralised_kind_in_lockstep_with_faults() {
              [comm]\np_fail = 0.3\nar = {{ coeffs = [[0.97, 0.98]], noise_var = [0.01, 0.01] }}\n\
              [faults]\navailability = 0.7\ndepartures = [{{ agent = 5, at = 0.1 }}]\n"
         );
-        let spec: ScenarioSpec = toml::from_str(&text).expect("TOML");
+        let spec = edgekf_io::spec_from_toml(&text).expect("TOML");
         let sc = match Scenario::from_spec(&spec, None) {
             Ok(sc) => sc,
             Err(e) => panic!("{kind}: {e}"),

@@ -50,7 +50,8 @@ fn bit_identical_for_any_thread_count() {
 fn resolved_round_trip_reproduces_results() {
     let sc = hexagon(0.001, 0.1, 300, 3, 10, names(&["mle", "rkf", "crkf"]));
     let json = serde_json::to_string(&sc.to_resolved()).unwrap();
-    let back = Scenario::from_resolved(&serde_json::from_str(&json).unwrap()).unwrap();
+    let back =
+        Scenario::from_resolved(&edgekf::scenario::Resolved::from_json(&json).unwrap()).unwrap();
     assert_eq!(serde_json::to_string(&back.to_resolved()).unwrap(), json);
     assert_eq!(run(&sc), run(&back));
 }

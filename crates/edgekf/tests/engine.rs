@@ -18,11 +18,21 @@ estimators = ["rkf"]
 preset = "hexagon"
 "#;
 
+/// `ScenarioSpec::minimal` (how code and unit tests build a scenario without parsing TOML) is
+/// the smallest file: its defaults are the file's.
+#[test]
+fn minimal_spec_is_the_smallest_file() {
+    let parsed = edgekf_io::spec_from_toml(MINIMAL).unwrap();
+    let built = ScenarioSpec::minimal("smallest", &["rkf"]);
+    let resolved = |s: &ScenarioSpec| Scenario::from_spec(s, None).unwrap().to_resolved();
+    assert_eq!(resolved(&built), resolved(&parsed));
+}
+
 /// The smallest documented scenario carries the defaults of the user guide's Scenario files,
 /// and runs.
 #[test]
 fn minimal_scenario_has_the_papers_defaults_and_runs() {
-    let spec: ScenarioSpec = toml::from_str(MINIMAL).unwrap();
+    let spec = edgekf_io::spec_from_toml(MINIMAL).unwrap();
     let sc = Scenario::from_spec(&spec, None).unwrap();
     assert_eq!(sc.dt(), 1e-3);
     assert_eq!((sc.steps(), sc.runs(), sc.seed()), (30_000, 50, 1));

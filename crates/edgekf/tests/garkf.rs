@@ -4,7 +4,7 @@
 
 mod common;
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::Results;
 use nalgebra::{Matrix2, SMatrix};
 
@@ -37,7 +37,7 @@ meas_corr = 0.3
 {extra}
 "#
     );
-    let spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+    let spec = edgekf_io::spec_from_toml(&text).expect("valid TOML");
     Scenario::from_spec(&spec, None).expect("valid scenario")
 }
 
@@ -318,7 +318,7 @@ fn consensus_step_is_checked_against_its_stability_bound() {
         let text = format!(
             "name = \"eps\"\nestimators = [{est}]\n{fw}\n[sim]\ndt = 0.01\nsteps = 10\nruns = 1\n"
         );
-        let spec: ScenarioSpec = toml::from_str(&text).map_err(|e| e.to_string())?;
+        let spec = edgekf_io::spec_from_toml(&text).map_err(|e| e.to_string())?;
         let file = spec.framework.file.as_ref().map(|_| {
             edgekf_io::framework::spec_from_json(include_str!(
                 "../../../scenarios/frameworks/random50-dense.json"

@@ -7,7 +7,7 @@
 
 mod common;
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::{self, Quiet};
 
 fn scenario(runs: usize, extra_garkf: &str, steps: usize) -> Scenario {
@@ -41,7 +41,7 @@ leaders = "target"
 feedback = "truth"
 "#
     );
-    let spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+    let spec = edgekf_io::spec_from_toml(&text).expect("valid TOML");
     Scenario::from_spec(&spec, None).expect("valid scenario")
 }
 
@@ -94,7 +94,7 @@ fn geo_options_are_checked() {
         let text = format!(
             "name = \"x\"\nestimators = [{estimators}]\n[framework]\npreset = \"hexagon\"\n[sim]\ndt = 0.01\nsteps = 10\n{extra}"
         );
-        let spec: ScenarioSpec = toml::from_str(&text).expect("TOML");
+        let spec = edgekf_io::spec_from_toml(&text).expect("TOML");
         Scenario::from_spec(&spec, None).unwrap_err().to_string()
     };
     let e = bad("", "{ kind = \"garkf\", geo_memory = 3.0 }");

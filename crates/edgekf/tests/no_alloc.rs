@@ -136,7 +136,7 @@ edge = [1, 0]
 "#,
             every = steps / 2
         );
-        let spec: edgekf::scenario::ScenarioSpec = toml::from_str(&text).unwrap();
+        let spec = edgekf_io::spec_from_toml(&text).unwrap();
         let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
         allocations(pool, &sc)
     };

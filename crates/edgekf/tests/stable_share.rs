@@ -4,7 +4,7 @@
 //! sparse graph with departures read 0 (the 100-run shares are 0.78 / 0.65 / 0.10 / 0.10 at
 //! 6 / 10 / 30 / 50 % departing, σ_w = 1, and 0.77 / 0.65 / 0.12 / 0.08 at the shipped 0.03).
 
-use edgekf::scenario::{Scenario, ScenarioSpec, StableSpec};
+use edgekf::scenario::{Scenario, StableSpec};
 use edgekf::sim::{self, sweep, Options, Outcome, Quiet};
 use edgekf_io::reproductions::{framework_of, ENTRIES};
 
@@ -17,7 +17,7 @@ fn fig13_sparse(runs: usize) -> (Scenario, StableSpec) {
     // The scenario as written at the swept value, so that the sweep runs it once.
     let text = e.text.replace("share = 0.5, at", "share = 0.1, at");
     assert_ne!(text, e.text, "the shipped share");
-    let mut spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+    let mut spec = edgekf_io::spec_from_toml(&text).expect("valid TOML");
     let fw = framework_of(e.file, &spec).expect("framework");
     spec.plots.clear();
     spec.sim.runs = runs;

@@ -6,7 +6,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use edgekf::sim::{self, sweep, Observer};
 use edgekf_io::reproductions::{framework_of, ENTRIES};
 
@@ -33,7 +33,7 @@ fn fig12(at: &str) -> Scenario {
     let text = e
         .text
         .replace("agent = 6, at = 10.0", &format!("agent = 6, at = {at}"));
-    let mut spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+    let mut spec = edgekf_io::spec_from_toml(&text).expect("valid TOML");
     assert!(!spec.plots.is_empty(), "the shipped sweep has its figure");
     spec.sim.runs = RUNS;
     spec.sim.steps = STEPS;

@@ -35,7 +35,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use edgekf::scenario::{Scenario, ScenarioSpec};
+use edgekf::scenario::Scenario;
 use mutate::{Format, Mutator, Seed};
 
 /// The binary under test.
@@ -92,7 +92,7 @@ pub fn corpus(base: u64, work: &Path) -> (Mutator, Vec<Role>) {
     for p in &files {
         let text = fs::read_to_string(p).expect("readable");
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        match toml::from_str::<ScenarioSpec>(&text) {
+        match edgekf_io::spec_from_toml(&text) {
             Ok(spec) => {
                 // A scenario naming a framework file (the GA-RKF ones) is a seed in its
                 // resolved form only: a mutated copy elsewhere would not find the file.

@@ -7,7 +7,7 @@ pub const FIG3: &str = include_str!("../../../../scenarios/slam-fig3.toml");
 pub const DISTURBED: &str = include_str!("../../../../scenarios/slam-disturbed.toml");
 
 pub fn spec(text: &str) -> ScenarioSpec {
-    toml::from_str(text).expect("shipped scenario parses")
+    ScenarioSpec::from_toml(text).expect("shipped scenario parses")
 }
 
 pub fn scenario(text: &str) -> Scenario {

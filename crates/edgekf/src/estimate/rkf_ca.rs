@@ -1219,11 +1219,13 @@ mod tests {
     use rand_xoshiro::Xoshiro256PlusPlus;
 
     fn model(meas_corr: f64) -> Model {
-        let text = format!(
-            "name = \"t\"\nestimators = [\"rkf-ca\"]\n[framework]\npreset = \"hexagon\"\n\
-             [sim]\ndt = 0.01\nsteps = 10\n[noise]\nsigma_v = 0.1\nmeas_corr = {meas_corr}\n"
-        );
-        let spec: ScenarioSpec = toml::from_str(&text).expect("valid TOML");
+        // The hexagon, Δt = 0.01, 10 steps, σ_v = 0.1. (Built, not parsed from TOML: serde's
+        // deserialiser would be compiled into this test binary for one call.)
+        let mut spec = ScenarioSpec::minimal("t", &["rkf-ca"]);
+        spec.sim.dt = 0.01;
+        spec.sim.steps = 10;
+        spec.noise.sigma_v = 0.1;
+        spec.noise.meas_corr = meas_corr;
         Scenario::from_spec(&spec, None)
             .expect("valid")
             .model()

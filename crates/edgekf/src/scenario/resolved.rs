@@ -10,6 +10,18 @@ use super::spec::{
 /// Schema tag of [`Resolved`].
 pub const SCHEMA: &str = "edgekf.scenario/1";
 
+impl Resolved {
+    /// Parses a resolved scenario (`scenario.json`), refusing unknown keys by name. The same as
+    /// `serde_json::from_str::<Resolved>`, compiled once here instead of in every caller and
+    /// test binary (serde's deserialiser is generic; docs/build-times.md).
+    ///
+    /// # Errors
+    /// JSON syntax, an unknown key or a value of the wrong type, with its line and column.
+    pub fn from_json(text: &str) -> Result<Self, serde_json::Error> {
+        serde_json::from_str(text)
+    }
+}
+
 /// The fully resolved scenario. The keys up to `estimators` are the contract; the others are
 /// optional on input, with the papers' defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -6,8 +6,8 @@
 //!   the hexagon preset and of the stress designs `edgekf design --generate hexagon --method sdp`
 //!   and `--generate hexagon3d --method sdp` would write, each read through a small scenario
 //!   that names it in `framework.file`.
-//! - **Path**: `toml::from_str::<ScenarioSpec>` → `Scenario::from_spec`;
-//!   `serde_json::from_str::<Resolved>` → `Scenario::from_resolved`; a framework file is parsed
+//! - **Path**: `edgekf_io::spec_from_toml` → `Scenario::from_spec`;
+//!   `Resolved::from_json` → `Scenario::from_resolved`; a framework file is parsed
 //!   as the CLI parses it (schema checked) and handed to `Scenario::from_spec`.
 //! - **Oracle**: no panic; a refusal is an error whose key or field is named (a
 //!   [`ScenarioError`] whose key is a key of that input, or a parse error naming a field in
@@ -32,7 +32,7 @@ use std::time::{Duration, Instant};
 
 use edgekf::design::{self, generators, Method};
 use edgekf::framework::Framework;
-use edgekf::scenario::{Resolved, Scenario, ScenarioError, ScenarioSpec};
+use edgekf::scenario::{Resolved, Scenario, ScenarioError};
 use edgekf_io::framework::FrameworkFile;
 use mutate::{Format, Mutator, Seed};
 
@@ -84,7 +84,7 @@ pub fn corpus(base: u64) -> (Mutator, Vec<Role>) {
     for p in &files {
         let text = std::fs::read_to_string(p).expect("readable scenario");
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        let Ok(spec) = toml::from_str::<ScenarioSpec>(&text) else {
+        let Ok(spec) = edgekf_io::spec_from_toml(&text) else {
             // SLAM scenarios (`kind = "slam"`) belong to edgekf-slam.
             assert!(text.contains("kind = \"slam\""), "{name} does not parse");
             continue;
@@ -308,7 +308,7 @@ pub fn judge(role: Role, text: &str) -> Verdict {
 fn check_input(role: Role, text: &str) -> Verdict {
     match role {
         Role::Toml => {
-            let spec = match toml::from_str::<ScenarioSpec>(text) {
+            let spec = match edgekf_io::spec_from_toml(text) {
                 Ok(s) => s,
                 Err(e) => return parse_refusal(&e.to_string(), text),
             };
@@ -325,7 +325,7 @@ fn check_input(role: Role, text: &str) -> Verdict {
             }
         }
         Role::Resolved => {
-            let r = match serde_json::from_str::<Resolved>(text) {
+            let r = match Resolved::from_json(text) {
                 Ok(r) => r,
                 Err(e) => return parse_refusal(&e.to_string(), text),
             };
@@ -340,8 +340,8 @@ fn check_input(role: Role, text: &str) -> Verdict {
                 Ok(f) => f.to_spec(),
                 Err(e) => return parse_refusal(&e.to_string(), text),
             };
-            let spec: ScenarioSpec =
-                toml::from_str(FRAMEWORK_SCENARIO).expect("valid framework scenario");
+            let spec =
+                edgekf_io::spec_from_toml(FRAMEWORK_SCENARIO).expect("valid framework scenario");
             match Scenario::from_spec(&spec, Some(&fs)) {
                 Ok(sc) => invariants(&sc),
                 Err(e) => check_refusal(&e, TOML_ROOTS),
@@ -430,7 +430,7 @@ fn invariants(sc: &Scenario) -> Verdict {
         Ok(j) => j,
         Err(e) => return defect("invariant", format!("resolved form not serialisable: {e}")),
     };
-    let back: Resolved = match serde_json::from_str(&json) {
+    let back = match Resolved::from_json(&json) {
         Ok(b) => b,
         Err(e) => {
             return defect(
