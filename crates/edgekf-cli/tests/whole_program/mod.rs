@@ -379,121 +379,132 @@ fn png_ok(path: &Path) -> bool {
     }
 }
 
+/// A finding about a run's outputs: its kind and the detail.
+type Finding = (String, String);
+
+fn finding<T>(kind: &str, detail: String) -> Result<T, Finding> {
+    Err((kind.to_string(), detail))
+}
+
 /// Checks the outputs of a successful (exit 0) or diverged (exit 3) run.
-fn check_outputs(
-    out: &Path,
-    slam: bool,
-    code: i32,
-    allowed_flag: bool,
-) -> Result<(), (String, String)> {
-    let bad = |k: &str, d: String| Err((k.to_string(), d));
+fn check_outputs(out: &Path, slam: bool, code: i32, allowed_flag: bool) -> Result<(), Finding> {
+    let sj = check_files(out)?;
+    if slam {
+        return check_slam(out, &sj);
+    }
+    if sj.get("schema").and_then(|s| s.as_str()) != Some("edgekf.scenario/1") {
+        return finding("unparsable output", "scenario.json schema".into());
+    }
+    let allowed =
+        allowed_flag || sj.get("allow_divergence").and_then(|v| v.as_bool()) == Some(true);
+    let diverged = check_tables(out)?;
+    match code {
+        0 if !diverged.is_empty() && !allowed => finding(
+            "exit 0 with a divergence",
+            format!("status.csv: {}", diverged[0].join(",")),
+        ),
+        3 if diverged.is_empty() => finding(
+            "exit 3 without a divergence",
+            "status.csv all completed".into(),
+        ),
+        3 if allowed => finding("exit 3 although divergence was allowed", String::new()),
+        _ => Ok(()),
+    }
+}
+
+/// Every run's outputs: no temporary file left, whole PNGs, and `scenario.json` (returned).
+fn check_files(out: &Path) -> Result<serde_json::Value, Finding> {
     let files = files_under(out);
     if let Some(t) = files.iter().find(|p| {
         p.file_name()
             .is_some_and(|n| n.to_string_lossy().contains(".tmp"))
     }) {
-        return bad("temp file left", t.display().to_string());
+        return finding("temp file left", t.display().to_string());
     }
-    let sj = match fs::read_to_string(out.join("scenario.json"))
+    let Some(sj) = fs::read_to_string(out.join("scenario.json"))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-    {
-        Some(v) => v,
-        None => {
-            return bad(
-                "unparsable output",
-                "scenario.json missing or not JSON".into(),
-            )
-        }
+    else {
+        return finding(
+            "unparsable output",
+            "scenario.json missing or not JSON".into(),
+        );
     };
     for p in files
         .iter()
         .filter(|p| p.extension().is_some_and(|e| e == "png"))
     {
         if !png_ok(p) {
-            return bad(
+            return finding(
                 "unparsable output",
                 format!("{} is not a whole PNG", p.display()),
             );
         }
     }
-    if slam {
-        if sj.get("schema").and_then(|s| s.as_str()) != Some("edgekf.slam/1") {
-            return bad("unparsable output", "SLAM scenario.json schema".into());
-        }
-        for (f, h) in [
-            ("robots.csv", "time,robot,quantity,value"),
-            ("team.csv", "time,quantity,value"),
-        ] {
-            let skip: &[usize] = if f == "robots.csv" { &[2] } else { &[1] };
-            match csv(&out.join(f), h, 0, skip) {
-                Err(e) => return bad("unparsable output", e),
-                Ok((_, false)) => {
-                    return bad("non-finite output, exit 0", format!("{f} has NaN/inf"))
-                }
-                Ok(_) => {}
+    Ok(sj)
+}
+
+/// A SLAM run's outputs: its schema, `robots.csv` and `team.csv` whole and finite.
+fn check_slam(out: &Path, sj: &serde_json::Value) -> Result<(), Finding> {
+    if sj.get("schema").and_then(|s| s.as_str()) != Some("edgekf.slam/1") {
+        return finding("unparsable output", "SLAM scenario.json schema".into());
+    }
+    for (f, h) in [
+        ("robots.csv", "time,robot,quantity,value"),
+        ("team.csv", "time,quantity,value"),
+    ] {
+        let skip: &[usize] = if f == "robots.csv" { &[2] } else { &[1] };
+        match csv(&out.join(f), h, 0, skip) {
+            Err(e) => return finding("unparsable output", e),
+            Ok((_, false)) => {
+                return finding("non-finite output, exit 0", format!("{f} has NaN/inf"))
             }
+            Ok(_) => {}
         }
-        return Ok(());
     }
-    if sj.get("schema").and_then(|s| s.as_str()) != Some("edgekf.scenario/1") {
-        return bad("unparsable output", "scenario.json schema".into());
-    }
-    let allowed =
-        allowed_flag || sj.get("allow_divergence").and_then(|v| v.as_bool()) == Some(true);
-    let metrics = match csv(
+    Ok(())
+}
+
+/// A filter run's tables: `metrics.csv` whole and finite, `status.csv` with known statuses,
+/// `paths.csv` finite unless a run diverged. Returns the diverged rows of `status.csv`.
+fn check_tables(out: &Path) -> Result<Vec<Vec<String>>, Finding> {
+    let unparsable = |e| finding("unparsable output", e);
+    let metrics = csv(
         &out.join("metrics.csv"),
         "estimator,step,time,metric,mean,std",
         1,
         &[3],
-    ) {
-        Err(e) => return bad("unparsable output", e),
-        Ok(m) => m,
-    };
-    let status = match csv(
+    )
+    .or_else(unparsable)?;
+    let (status, _) = csv(
         &out.join("status.csv"),
         "estimator,status,step,time,run,cause",
         99,
         &[],
-    ) {
-        Err(e) => return bad("unparsable output", e),
-        Ok((rows, _)) => rows,
-    };
-    let diverged: Vec<&Vec<String>> = status.iter().filter(|r| r[1] == "diverged").collect();
+    )
+    .or_else(unparsable)?;
     if status
         .iter()
         .any(|r| r[1] != "diverged" && r[1] != "completed")
     {
-        return bad("unparsable output", "status.csv: unknown status".into());
+        return finding("unparsable output", "status.csv: unknown status".into());
     }
+    let diverged: Vec<Vec<String>> = status.into_iter().filter(|r| r[1] == "diverged").collect();
     if !metrics.1 {
-        return bad(
+        return finding(
             "non-finite output, exit 0",
             "metrics.csv has NaN/inf".into(),
         );
     }
-    let paths = match csv(&out.join("paths.csv"), "estimator,step,time,agent", 1, &[]) {
-        Err(e) => return bad("unparsable output", e),
-        Ok(p) => p,
-    };
+    let paths =
+        csv(&out.join("paths.csv"), "estimator,step,time,agent", 1, &[]).or_else(unparsable)?;
     if !paths.1 && diverged.is_empty() {
-        return bad(
+        return finding(
             "non-finite output, exit 0",
             "paths.csv has NaN/inf without a divergence".into(),
         );
     }
-    match code {
-        0 if !diverged.is_empty() && !allowed => bad(
-            "exit 0 with a divergence",
-            format!("status.csv: {}", diverged[0].join(",")),
-        ),
-        3 if diverged.is_empty() => bad(
-            "exit 3 without a divergence",
-            "status.csv all completed".into(),
-        ),
-        3 if allowed => bad("exit 3 although divergence was allowed", String::new()),
-        _ => Ok(()),
-    }
+    Ok(diverged)
 }
 
 /// Runs case `n` in `dir` and judges it.
@@ -556,29 +567,7 @@ pub fn run_input(
                 "crash (signal)".into(),
                 stderr.lines().last().unwrap_or("").to_string(),
             ),
-            Some(c @ (1 | 2)) => {
-                let left = files_under(&out);
-                if stderr.trim().is_empty() {
-                    Verdict::Defect("exit without a message".into(), format!("exit {c}"))
-                } else if !left.is_empty() {
-                    Verdict::Defect(
-                        "output left after failure".into(),
-                        format!(
-                            "{} file(s), e.g. {}; stderr: {}",
-                            left.len(),
-                            left[0].display(),
-                            stderr.trim()
-                        ),
-                    )
-                } else if out.exists() {
-                    Verdict::Defect(
-                        "output directory left after failure".into(),
-                        stderr.trim().to_string(),
-                    )
-                } else {
-                    Verdict::Refused
-                }
-            }
+            Some(c @ (1 | 2)) => judge_refusal(&out, &stderr, c),
             Some(c @ (0 | 3)) => {
                 if c == 3 && stderr.trim().is_empty() {
                     Verdict::Defect("exit without a message".into(), "exit 3".into())
@@ -600,6 +589,31 @@ pub fn run_input(
         }
     };
     (v, stderr, wall, args)
+}
+
+/// A refusal (exit `c`, 1 or 2) says why and leaves no output behind.
+fn judge_refusal(out: &Path, stderr: &str, c: i32) -> Verdict {
+    let left = files_under(out);
+    if stderr.trim().is_empty() {
+        Verdict::Defect("exit without a message".into(), format!("exit {c}"))
+    } else if !left.is_empty() {
+        Verdict::Defect(
+            "output left after failure".into(),
+            format!(
+                "{} file(s), e.g. {}; stderr: {}",
+                left.len(),
+                left[0].display(),
+                stderr.trim()
+            ),
+        )
+    } else if out.exists() {
+        Verdict::Defect(
+            "output directory left after failure".into(),
+            stderr.trim().to_string(),
+        )
+    } else {
+        Verdict::Refused
+    }
 }
 
 /// Re-runs the resolved `scenario.json` of a successful run: `metrics.csv` must be identical.

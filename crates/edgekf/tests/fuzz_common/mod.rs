@@ -380,96 +380,115 @@ fn check_refusal(e: &ScenarioError, roots: &[&str]) -> Verdict {
 
 /// Cheap invariants of an accepted scenario.
 fn invariants(sc: &Scenario) -> Verdict {
-    // Report steps: 1, the multiples of `every`, and the last step, increasing.
+    let held = report_steps_hold(sc)
+        .and_then(|()| derived_values_hold(sc))
+        .and_then(|()| round_trip_holds(sc))
+        .and_then(|()| overrides_hold(sc));
+    match held {
+        Ok(()) => Verdict::Accepted,
+        Err(v) => v,
+    }
+}
+
+/// Report steps: 1, the multiples of `every`, and the last step, increasing.
+fn report_steps_hold(sc: &Scenario) -> Result<(), Verdict> {
     let count = sc.report_count();
     if count == 0 {
-        return defect("invariant", "no reported step");
+        return Err(defect("invariant", "no reported step"));
     }
-    if count <= 1_000_000 {
-        let steps = sc.report_steps();
-        if steps.len() != count {
-            return defect(
-                "invariant",
-                format!("report_count {count} but {} report steps", steps.len()),
-            );
-        }
-        if steps[0] != 1
-            || *steps.last().unwrap() != sc.steps()
-            || steps.windows(2).any(|w| w[0] >= w[1])
-        {
-            return defect(
-                "invariant",
-                format!(
-                    "report steps not 1 < … < steps: {:?}…",
-                    &steps[..steps.len().min(5)]
-                ),
-            );
-        }
+    if count > 1_000_000 {
+        return Ok(());
     }
-    // The cost estimate is finite.
+    let steps = sc.report_steps();
+    if steps.len() != count {
+        return Err(defect(
+            "invariant",
+            format!("report_count {count} but {} report steps", steps.len()),
+        ));
+    }
+    if steps[0] != 1
+        || *steps.last().unwrap() != sc.steps()
+        || steps.windows(2).any(|w| w[0] >= w[1])
+    {
+        return Err(defect(
+            "invariant",
+            format!(
+                "report steps not 1 < … < steps: {:?}…",
+                &steps[..steps.len().min(5)]
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The cost estimate is finite, the step bound a number, and there is a metric.
+fn derived_values_hold(sc: &Scenario) -> Result<(), Verdict> {
     let c = edgekf::sim::cost(sc, sc.runs(), 2);
     if !(c.seconds.is_finite() && c.seconds >= 0.0 && c.bytes.is_finite() && c.bytes >= 0.0) {
-        return defect(
+        return Err(defect(
             "invariant",
             format!(
                 "cost estimate not finite: {} s, {} bytes",
                 c.seconds, c.bytes
             ),
-        );
+        ));
     }
     if sc.step_bound().is_nan() {
-        return defect("invariant", "step bound is NaN");
+        return Err(defect("invariant", "step bound is NaN"));
     }
     let _ = sc.divergence_hint();
     if sc.metric_names().is_empty() {
-        return defect("invariant", "no metric");
+        return Err(defect("invariant", "no metric"));
     }
-    // Round trip through the resolved form.
+    Ok(())
+}
+
+/// Round trip through the resolved form: JSON and back, and scenario and back.
+fn round_trip_holds(sc: &Scenario) -> Result<(), Verdict> {
     let r = sc.to_resolved();
-    let json = match serde_json::to_string(&r) {
-        Ok(j) => j,
-        Err(e) => return defect("invariant", format!("resolved form not serialisable: {e}")),
-    };
-    let back = match Resolved::from_json(&json) {
-        Ok(b) => b,
-        Err(e) => {
-            return defect(
-                "invariant",
-                format!("resolved form does not parse back: {e}"),
-            )
-        }
-    };
+    let json = serde_json::to_string(&r)
+        .map_err(|e| defect("invariant", format!("resolved form not serialisable: {e}")))?;
+    let back = Resolved::from_json(&json).map_err(|e| {
+        defect(
+            "invariant",
+            format!("resolved form does not parse back: {e}"),
+        )
+    })?;
     if back != r {
-        return defect(
+        return Err(defect(
             "invariant",
             "resolved form parses back to a different value",
-        );
+        ));
     }
-    let again = match Scenario::from_resolved(&back) {
-        Ok(s) => s,
-        Err(e) => {
-            return defect(
-                "invariant",
-                format!("resolved form of an accepted scenario is refused: {e}"),
-            )
-        }
-    };
+    let again = Scenario::from_resolved(&back).map_err(|e| {
+        defect(
+            "invariant",
+            format!("resolved form of an accepted scenario is refused: {e}"),
+        )
+    })?;
     if again.to_resolved() != r {
-        return defect("invariant", "resolved → scenario → resolved differs");
+        return Err(defect(
+            "invariant",
+            "resolved → scenario → resolved differs",
+        ));
     }
-    // The whole-program fuzz's size overrides refuse or accept, naming the flag.
+    Ok(())
+}
+
+/// The whole-program fuzz's size overrides refuse or accept, naming the flag.
+fn overrides_hold(sc: &Scenario) -> Result<(), Verdict> {
     if let Err(e) = sc.clone().with_size(Some(2), Some(30), None) {
         if !names_key(&e, FLAG_ROOTS)
             && !names_key(&e, TOML_ROOTS)
             && !names_key(&e, RESOLVED_ROOTS)
         {
-            return defect(
+            return Err(defect(
                 "unnamed refusal",
                 format!("override refused without a key: {e}"),
-            );
+            ));
         }
     }
-    Verdict::Accepted
+    Ok(())
 }
 
 /// Counts of a fuzz run.
