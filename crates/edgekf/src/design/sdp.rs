@@ -195,20 +195,30 @@ fn conditioning_ipm(
 ) -> Result<Conditioned, DesignError> {
     let floor = 1.0 / max_condition(space.agents());
     let p1 = phase1(space, floor)?;
-    if p1.s_upper < floor {
-        return Err(not_rigid(p1.s_upper));
+    certified(p1.s, p1.s_upper, floor, p1.iterations, not_rigid)?;
+    Ok(phase2(space, rel, p1))
+}
+
+/// The verdict on bounds `[lower, upper]` of the optimal `s` against the acceptance `floor`:
+/// an upper bound below it certifies that no stress exists (`not_rigid`); a lower bound not
+/// above it, with no such certificate, means the solvers stalled in between.
+fn certified(
+    lower: f64,
+    upper: f64,
+    floor: f64,
+    iterations: usize,
+    not_rigid: impl FnOnce(f64) -> DesignError,
+) -> Result<(), DesignError> {
+    if upper < floor {
+        return Err(not_rigid(upper));
     }
-    if p1.s <= floor {
-        // Neither a stress with s > 1e-8 nor a bound below it: both methods stalled in between.
+    if lower <= floor {
         return Err(DesignError::Solver {
-            status: SolverStatus::Stalled {
-                lower: p1.s,
-                upper: p1.s_upper,
-            },
-            iterations: p1.iterations,
+            status: SolverStatus::Stalled { lower, upper },
+            iterations,
         });
     }
-    Ok(phase2(space, rel, p1))
+    Ok(())
 }
 
 /// Where phase 1 of [`conditioning_ipm`] ended.
@@ -455,20 +465,11 @@ pub fn design(candidate: &Candidate, options: &SdpOptions) -> Result<Design, Des
             }
             let floor = lambda_bar.min(weight_bound) / max_condition(candidate.config.len());
             let gap = solve_gap(&space, lambda_bar, weight_bound, floor, options)?;
-            if gap.upper < floor {
-                return Err(DesignError::NotUniversallyRigid(format!(
+            certified(gap.lower, gap.upper, floor, gap.iterations, |_| {
+                DesignError::NotUniversallyRigid(format!(
                     "no positive semidefinite stress of rank N − D − 1 = {expected_rank} exists on this graph"
-                )));
-            }
-            if gap.lower <= floor {
-                return Err(DesignError::Solver {
-                    status: SolverStatus::Stalled {
-                        lower: gap.lower,
-                        upper: gap.upper,
-                    },
-                    iterations: gap.iterations,
-                });
-            }
+                ))
+            })?;
             let w = &space.z * gap.y.rows(0, space.z.ncols());
             let rel_gap = ((gap.upper - gap.lower) / gap.lower).max(0.0);
             let f = sdp_finish(false, gap.iterations, gap.solver, rel_gap);
