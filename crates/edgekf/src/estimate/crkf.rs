@@ -408,6 +408,10 @@ fn add_edge_information(j: &mut DMatrix<f64>, (a, b): (usize, usize), d: usize, 
 }
 
 impl Estimator for Crkf {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         // Each edge's means formed as `information_vector` reads them.
         Reads::MEANS.forming_means()

@@ -446,7 +446,7 @@ struct Held<const D: usize> {
 
 /// GA-RKF on every directed edge for a batch of runs. Per-(agent, run) state is stored agent-major
 /// (`i · runs + r`).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Garkf<const D: usize> {
     ca: CaEdges<D>,
     metric_edge: Option<usize>,
@@ -933,6 +933,10 @@ impl<const D: usize> Exchange for Garkf<D> {
 }
 
 impl<const D: usize> Estimator for Garkf<D> {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads::MEANS
     }

@@ -877,6 +877,10 @@ impl Jrkf {
 }
 
 impl Estimator for Jrkf {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         if self.shared {
             // The shared path forms each agent's means into its innovations.

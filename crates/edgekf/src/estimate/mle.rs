@@ -123,6 +123,10 @@ impl Mle {
 }
 
 impl Estimator for Mle {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         // The estimate is the means: formed straight into it.
         Reads::MEANS.forming_means()

@@ -134,6 +134,10 @@ impl<const D: usize> Mmse<D> {
 }
 
 impl<const D: usize> Estimator for Mmse<D> {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads::MEANS
     }

@@ -165,6 +165,14 @@ pub trait Estimator: Send {
     fn edge_covariance(&self, _e: usize, _r: usize, _out: &mut [f64]) -> bool {
         false
     }
+    /// A copy of the whole estimator as it stands (every run's state, its scratch), so that
+    /// the values of a sweep that share their first steps simulate them once and go on each
+    /// from its copy (`sim::fork`): the copy's next steps must give the bits the original's
+    /// would. `None` (the default) when it cannot be copied: those values are simulated from
+    /// the start.
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        None
+    }
 }
 
 /// Copies `m` into `out` (row-major), without allocating.

@@ -70,6 +70,10 @@ pub struct Oracle {
 }
 
 impl Estimator for Oracle {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads {
             increments: false,

@@ -700,6 +700,10 @@ fn ar_increment_of<const D: usize>(
 }
 
 impl<const D: usize> Estimator for Rkf<D> {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         if self.means_in_place() {
             Reads::INCREMENTS.forming_means()

@@ -134,6 +134,10 @@ impl AdaptiveRw {
 }
 
 impl Estimator for AdaptiveRw {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads::INCREMENTS
     }

@@ -1008,6 +1008,14 @@ pub(crate) trait PcrbTrack<const D: usize>: Send + std::fmt::Debug {
     fn trace(&self, r: usize) -> f64;
     /// The edge.
     fn edge(&self) -> usize;
+    /// A copy as it stands ([`Estimator::fork`]).
+    fn fork(&self) -> Box<dyn PcrbTrack<D>>;
+}
+
+impl<const D: usize> Clone for Box<dyn PcrbTrack<D>> {
+    fn clone(&self) -> Self {
+        self.fork()
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -1031,6 +1039,9 @@ impl<const D: usize, const S: usize> PcrbTrack<D> for PcrbRuns<D, S> {
             Bound::Ga => b.position_trace_ga(),
         });
         t.unwrap_or(f64::NAN)
+    }
+    fn fork(&self) -> Box<dyn PcrbTrack<D>> {
+        Box::new(self.clone())
     }
     fn edge(&self) -> usize {
         self.edge
@@ -1060,7 +1071,7 @@ pub(crate) fn pcrb_runs<const D: usize, const S: usize>(
 
 /// `rkf-ca` on every directed edge. A filter that becomes non-finite shows in `cov_trace`, which
 /// stops it ([`crate::sim::Outcome::Diverged`]).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct RkfCa<const D: usize> {
     ca: CaEdges<D>,
     metric_edge: Option<usize>,
@@ -1087,6 +1098,10 @@ impl<const D: usize> RkfCa<D> {
 }
 
 impl<const D: usize> Estimator for RkfCa<D> {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads::MEANS
     }

@@ -377,6 +377,10 @@ impl<const D: usize> RkfCommless<D> {
 }
 
 impl<const D: usize> Estimator for RkfCommless<D> {
+    fn fork(&self) -> Option<Box<dyn Estimator>> {
+        Some(Box::new(self.clone()))
+    }
+
     fn reads(&self) -> Reads {
         Reads::MEANS
     }

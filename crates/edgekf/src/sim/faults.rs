@@ -62,6 +62,13 @@ impl FaultStage {
         }
     }
 
+    /// The plan `plan` and its random departures `random` (per run) from the next update on: a
+    /// value of a sweep that shared the steps before its departures with other values.
+    pub(crate) fn set_departures(&mut self, plan: &FaultPlan, random: Vec<Vec<usize>>) {
+        self.plan = plan.clone();
+        self.random = random;
+    }
+
     /// From now on agents can leave at any step ([`FaultStage::depart`]): presence and the
     /// measurements' arrival are tracked every step.
     pub(crate) fn track_presence(&mut self) {

@@ -63,6 +63,7 @@ pub(crate) fn plan(sc: &Scenario, range: &Range<usize>, opt: Options) -> Option<
 }
 
 /// Records [`RunFrames`] of some runs of a chunk at the chosen reports.
+#[derive(Clone)]
 pub(crate) struct FrameRecorder {
     /// The reports to record (indices into the scenario's reported steps), ascending.
     wanted: Vec<usize>,
@@ -151,6 +152,12 @@ impl LaneObserver for FrameRecorder {
         }
     }
 
+    fn fork(&self) -> Box<dyn LaneObserver> {
+        Box::new(self.clone())
+    }
+    fn records_frames(&self) -> bool {
+        true
+    }
     fn finish(self: Box<Self>, out: &mut LaneOut) {
         out.frames = self.recorded.into_iter().map(|(_, rf)| rf).collect();
         out.frame_targets = self.targets;

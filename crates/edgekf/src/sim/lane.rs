@@ -71,6 +71,7 @@ pub(crate) struct At {
 }
 
 /// The loop's state, N·D or M·D rows × runs.
+#[derive(Clone)]
 struct State {
     z: Vec<f64>,
     u: Vec<f64>,
@@ -153,6 +154,29 @@ impl Lane {
             diverged: vec![false; runs],
             observers,
         }
+    }
+
+    /// A copy of the loop as it stands, for a value of a sweep that goes on from here
+    /// ([`super::fork`]): `sc` is the value's scenario (its metrics are rebuilt: they hold no
+    /// state), `frames` whether the value keeps the frame recorder. `None` when the estimator
+    /// cannot be copied ([`Estimator::fork`]).
+    pub(crate) fn fork(&self, sc: &Scenario, def: &EstimatorDef, frames: bool) -> Option<Lane> {
+        Some(Lane {
+            est: self.est.fork()?,
+            ctrl: self.ctrl.clone(),
+            noise: self.noise,
+            metrics: metrics_for(sc, def),
+            state: self.state.clone(),
+            values: self.values.clone(),
+            stop: self.stop.clone(),
+            diverged: self.diverged.clone(),
+            observers: self
+                .observers
+                .iter()
+                .filter(|o| frames || !o.records_frames())
+                .map(|o| o.fork())
+                .collect(),
+        })
     }
 
     /// Whether the loop still runs (it has not diverged).

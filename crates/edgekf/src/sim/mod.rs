@@ -26,6 +26,7 @@
 pub mod cost;
 pub(crate) mod divergence;
 pub(crate) mod faults;
+pub(crate) mod fork;
 pub mod frames;
 pub(crate) mod lane;
 pub mod metrics;
@@ -553,46 +554,111 @@ fn run_chunk(
     obs: &dyn Observer,
     opt: Options,
 ) -> Option<Chunk> {
-    let (mut shared, z0) = Shared::new(sc, range.clone());
-    let cx = Context::new(sc, &shared, &range, opt.per_run_divergence);
-    let record = range
-        .contains(&sc.paths_run())
-        .then(|| sc.paths_run() - range.start);
-    let frames = frames::plan(sc, &range, opt);
-    let mut lanes: Vec<Lane> = sc
-        .estimators()
-        .iter()
-        .map(|def| Lane::new(sc, def, &shared, &z0, (record, frames.as_ref()), opt))
-        .collect();
-    let report = sc.report_steps();
+    let mut chunk = ChunkLoop::new(sc, range.clone(), opt);
     let mut progress = Progress::new(obs, range.len(), sc.steps());
-    let mut index = 0;
-    for k in 1..=sc.steps() {
-        shared.advance(k);
-        let at = At {
-            k,
-            index,
-            now: report.get(index) == Some(&k),
-        };
-        for (e, lane) in lanes.iter_mut().enumerate().filter(|(_, l)| l.running()) {
-            lane.step(at, &shared, &cx);
-            if at.now && lane.running() {
-                obs.on_estimator(k, e, range.clone(), lane.estimator());
-            }
-        }
-        index += usize::from(at.now);
-        if !progress.after(k) {
-            return None;
+    chunk
+        .advance(sc, 1..=sc.steps(), obs, &mut progress)
+        .then(|| chunk.finish())
+}
+
+/// A chunk of runs between two steps: the shared stages and every estimator's loop.
+pub(crate) struct ChunkLoop<'a> {
+    range: Range<usize>,
+    shared: Shared<'a>,
+    lanes: Vec<Lane>,
+    per_run: bool,
+    /// The next report's index.
+    index: usize,
+}
+
+impl<'a> ChunkLoop<'a> {
+    /// Runs `range` of `sc` before their first step.
+    pub(crate) fn new(sc: &'a Scenario, range: Range<usize>, opt: Options) -> Self {
+        let (shared, z0) = Shared::new(sc, range.clone());
+        let record = range
+            .contains(&sc.paths_run())
+            .then(|| sc.paths_run() - range.start);
+        let frames = frames::plan(sc, &range, opt);
+        let lanes = sc
+            .estimators()
+            .iter()
+            .map(|def| Lane::new(sc, def, &shared, &z0, (record, frames.as_ref()), opt))
+            .collect();
+        Self {
+            range,
+            shared,
+            lanes,
+            per_run: opt.per_run_divergence,
+            index: 0,
         }
     }
-    Some(Chunk {
-        range,
-        lanes: lanes.into_iter().map(Lane::finish).collect(),
-    })
+
+    /// Steps `steps` of `sc`; `false` when the observer asked to stop.
+    pub(crate) fn advance(
+        &mut self,
+        sc: &Scenario,
+        steps: std::ops::RangeInclusive<usize>,
+        obs: &dyn Observer,
+        progress: &mut Progress<'_>,
+    ) -> bool {
+        let cx = Context::new(sc, &self.shared, &self.range, self.per_run);
+        let report = sc.report_steps();
+        for k in steps {
+            self.shared.advance(k);
+            let at = At {
+                k,
+                index: self.index,
+                now: report.get(self.index) == Some(&k),
+            };
+            for (e, lane) in self.lanes.iter_mut().enumerate() {
+                if !lane.running() {
+                    continue;
+                }
+                lane.step(at, &self.shared, &cx);
+                if at.now && lane.running() {
+                    obs.on_estimator(k, e, self.range.clone(), lane.estimator());
+                }
+            }
+            self.index += usize::from(at.now);
+            if !progress.after(k) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// A copy that goes on as `sc`, a scenario that differs from this one's only in its random
+    /// departures, still to come (`fork`); `frames` whether it keeps the frame recorders.
+    /// `None` when an estimator cannot be copied.
+    pub(crate) fn fork(&self, sc: &Scenario, frames: bool) -> Option<Self> {
+        let mut shared = self.shared.clone();
+        shared.set_departures(sc);
+        let lanes = self
+            .lanes
+            .iter()
+            .zip(sc.estimators())
+            .map(|(lane, def)| lane.fork(sc, def, frames))
+            .collect::<Option<_>>()?;
+        Some(Self {
+            range: self.range.clone(),
+            shared,
+            lanes,
+            per_run: self.per_run,
+            index: self.index,
+        })
+    }
+
+    /// The chunk's results.
+    pub(crate) fn finish(self) -> Chunk {
+        Chunk {
+            range: self.range,
+            lanes: self.lanes.into_iter().map(Lane::finish).collect(),
+        }
+    }
 }
 
 /// Progress reports and the cancellation check, every few hundred steps.
-struct Progress<'a> {
+pub(crate) struct Progress<'a> {
     obs: &'a dyn Observer,
     runs: usize,
     steps: usize,
@@ -601,7 +667,8 @@ struct Progress<'a> {
 impl<'a> Progress<'a> {
     const EVERY: usize = 500;
 
-    fn new(obs: &'a dyn Observer, runs: usize, steps: usize) -> Self {
+    /// For `runs` run-steps per step (runs of several values stepped as one count for all).
+    pub(crate) fn new(obs: &'a dyn Observer, runs: usize, steps: usize) -> Self {
         Self { obs, runs, steps }
     }
 

@@ -18,9 +18,16 @@ pub(crate) trait LaneObserver: Send {
     fn on_input(&mut self, _k: usize, _u: &[f64], _reported: bool) {}
     /// Moves what it collected into the loop's output.
     fn finish(self: Box<Self>, out: &mut LaneOut);
+    /// A copy of it as it stands (a sweep value going on from shared first steps).
+    fn fork(&self) -> Box<dyn LaneObserver>;
+    /// Whether it records frames (a sweep value that does not keep frames drops it).
+    fn records_frames(&self) -> bool {
+        false
+    }
 }
 
 /// The positions and inputs of one run at the reported steps (`paths.csv`, `inputs.csv`).
+#[derive(Clone)]
 pub(crate) struct PathRecorder {
     /// The run's index in the chunk.
     run: usize,
@@ -58,11 +65,15 @@ impl LaneObserver for PathRecorder {
         out.paths = self.paths;
         out.inputs = self.inputs;
     }
+    fn fork(&self) -> Box<dyn LaneObserver> {
+        Box::new(self.clone())
+    }
 }
 
 /// The inputs' autocovariance per coordinate and lag, summed per run: the biased
 /// (Yule–Walker) estimator `r(τ) = Σ u_k u_{k−τ} / n` over `k − τ ≥ from`, every `r(τ)` divided
 /// by the same count (in [`super::assemble`]), so the Toeplitz matrix stays PSD.
+#[derive(Clone)]
 pub(crate) struct InputAutocov {
     lags: usize,
     from: usize,
@@ -110,6 +121,9 @@ impl LaneObserver for InputAutocov {
                 }
             }
         }
+    }
+    fn fork(&self) -> Box<dyn LaneObserver> {
+        Box::new(self.clone())
     }
     fn finish(self: Box<Self>, out: &mut LaneOut) {
         out.acov = self.acov;

@@ -10,12 +10,13 @@ use std::ops::Range;
 
 use super::faults::FaultStage;
 use super::sensing::{MeasNoise, Sensing};
-use super::world::{Factor, Targets, World};
+use super::world::{departure_subsets, Factor, Targets, World};
 use crate::control::maneuver::Trajectory;
 use crate::control::LeaderMode;
 use crate::scenario::{InitAround, Scenario};
 
 /// The shared stages of a chunk of runs.
+#[derive(Clone)]
 pub(crate) struct Shared<'a> {
     pub(crate) world: World,
     q_factor: Factor,
@@ -29,6 +30,22 @@ pub(crate) struct Shared<'a> {
     config: &'a [f64],
     d: usize,
     dt: f64,
+    /// The chunk's first run (global index).
+    first_run: usize,
+}
+
+/// Per run of `range`, the followers of `sc` that depart at random (none without).
+fn random_departures(sc: &Scenario, range: Range<usize>) -> Vec<Vec<usize>> {
+    match sc.faults().random_departures {
+        Some((count, _)) if count > 0 => {
+            let fw = sc.framework();
+            let followers: Vec<usize> = (0..fw.agents())
+                .filter(|i| !fw.leaders().contains(i))
+                .collect();
+            departure_subsets(sc.seed(), range, &followers, count)
+        }
+        _ => vec![Vec::new(); range.len()],
+    }
 }
 
 impl<'a> Shared<'a> {
@@ -49,9 +66,10 @@ impl<'a> Shared<'a> {
         });
         let plan = sc.faults();
         let avail_active = plan.availability > 0.0 && plan.availability < 1.0;
+        let first_run = range.start;
         let mut world = World::new(
             sc.seed(),
-            range,
+            range.clone(),
             m,
             m * d,
             n * d,
@@ -62,13 +80,7 @@ impl<'a> Shared<'a> {
         );
         let mut z0 = vec![0.0; n * d * runs];
         world.initial_positions(sc.init_mean(), model.p(), &mut z0);
-        let random = match plan.random_departures {
-            Some((count, _)) if count > 0 => {
-                let followers: Vec<usize> = (0..n).filter(|i| !fw.leaders().contains(i)).collect();
-                world.subsets(&followers, count)
-            }
-            _ => vec![Vec::new(); runs],
-        };
+        let random = random_departures(sc, range);
         let faults = FaultStage::new(plan, n, fw.graph().edges(), runs, random, comm_active);
         let mut t_values: Vec<usize> = sc.estimators().iter().map(|e| e.samples()).collect();
         t_values.sort_unstable();
@@ -87,9 +99,18 @@ impl<'a> Shared<'a> {
             config: fw.config(),
             d,
             dt: sc.dt(),
+            first_run,
         };
         shared.place_initial(sc, &mut z0);
         (shared, z0)
+    }
+
+    /// From now on, the random departures of `sc` (a value of a sweep that shared the steps
+    /// before them with other values: [`super::fork`]).
+    pub(crate) fn set_departures(&mut self, sc: &Scenario) {
+        let range = self.first_run..self.first_run + self.world.runs();
+        self.faults
+            .set_departures(sc.faults(), random_departures(sc, range));
     }
 
     /// Step 1's target, leaders that track it placed on it, and the start shifted to each

@@ -16,11 +16,13 @@
 //!   a run past the divergence bound is unstable and the others go on.
 //!
 //! The scenario as written is run too (or taken from the value equal to it), for `metrics.csv`.
+//! Values that are the same runs until agents depart at random are stepped together until
+//! then ([`super::fork`]); each value's results are still those of simulating it alone.
 
 use std::ops::Range;
 
 use super::stats::mean_std;
-use super::{run_range, Observer, Options, Results, RunError};
+use super::{fork, run_range, Observer, Options, Results, RunError};
 use crate::estimate::Registry;
 use crate::scenario::{Scenario, ScenarioError, StableSpec};
 
@@ -249,9 +251,6 @@ fn run_in_with(
 ) -> Result<SweepResults, SweepError> {
     let base_sc = sc.without_sweep();
     let base_key = resolved_key(&base_sc);
-    let mut base = None;
-    let mut points = Vec::new();
-    let mut summary = Vec::new();
     // A sweep that counts stable runs judges divergence run by run.
     let opt = Options {
         per_run_divergence: sc.sweep().is_some_and(|s| s.stable.is_some()),
@@ -262,22 +261,38 @@ fn run_in_with(
         frame_limit: extra.frame_limit,
         ..opt
     };
-    for (k, p) in sc.sweep_points_in(registry)?.into_iter().enumerate() {
-        let is_base = base.is_none() && resolved_key(&p.scenario) == base_key;
-        let point_opt = if is_base { base_opt } else { opt };
-        let res = run_range(&p.scenario, 0..p.scenario.runs(), obs, point_opt)?;
-        summarise(sc, k, &res, &mut summary);
-        if is_base {
-            base = Some(res.clone());
+    let values = sc.sweep_points_in(registry)?;
+    let scs: Vec<&Scenario> = values.iter().map(|p| &p.scenario).collect();
+    let base_at = scs.iter().position(|s| resolved_key(s) == base_key);
+    let opts: Vec<Options> = (0..scs.len())
+        .map(|k| if Some(k) == base_at { base_opt } else { opt })
+        .collect();
+    let mut results: Vec<Option<Results>> = vec![None; scs.len()];
+    for (members, at) in fork::groups(&scs) {
+        let group: Vec<&Scenario> = members.iter().map(|&k| scs[k]).collect();
+        let group_opts: Vec<Options> = members.iter().map(|&k| opts[k]).collect();
+        if let Some(res) = fork::run_group(&group, &group_opts, at, obs)? {
+            for (&k, r) in members.iter().zip(res) {
+                results[k] = Some(r);
+            }
         }
+    }
+    let mut points = Vec::with_capacity(scs.len());
+    let mut summary = Vec::new();
+    for (k, (p, res)) in values.into_iter().zip(results).enumerate() {
+        let res = match res {
+            Some(r) => r,
+            None => run_range(&p.scenario, 0..p.scenario.runs(), obs, opts[k])?,
+        };
+        summarise(sc, k, &res, &mut summary);
         points.push(PointResults {
             label: p.label,
             value: p.value,
             results: res,
         });
     }
-    let base = match base {
-        Some(b) => b,
+    let base = match base_at {
+        Some(k) => points[k].results.clone(),
         None => run_range(&base_sc, 0..base_sc.runs(), obs, base_opt)?,
     };
     Ok(SweepResults {

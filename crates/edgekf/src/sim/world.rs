@@ -4,14 +4,17 @@
 //! Run `r` draws from its own xoshiro256++ stream seeded from `(seed, r)` ([`crate::rng`]: normals
 //! from its ziggurat, drawn for four runs at a time in SIMD lanes, each run's values those of
 //! its own stream), in this order:
-//! 1. at the start: the initial positions (N·D standard normals), then, with random departures,
-//!    the departing subset (a partial Fisher–Yates shuffle of the followers: one uniform integer
-//!    per departing agent);
+//! 1. at the start: the initial positions (N·D standard normals);
 //! 2. every step k: the measurement-mean noise (M·D normals, only when R ≠ 0), the process noise
 //!    (N·D normals, only when Q ≠ 0), the chapter 6 link-failure uniforms (M, only when an
 //!    estimator has `0 < P_fail < 1`), the availability uniforms (M, only when `0 < λ < 1`).
 //!
 //! New draws are appended, never reordered: that order is part of the reproducibility contract.
+//!
+//! With random departures, run `r`'s departing agents come from a stream of their own
+//! ([`departure_subsets`]), so none of the draws above depends on the share that leaves: the
+//! values of a sweep over the share are the same runs until the departures (common random
+//! numbers), and a larger share's departing agents include a smaller share's.
 
 use nalgebra::DMatrix;
 use rand::Rng;
@@ -19,7 +22,7 @@ use rand::Rng;
 use crate::control::maneuver::{target_positions, Trajectory};
 use crate::estimate::Target;
 use crate::linalg::{batch_gemv, psd_factor, to_row_major, with_avx2};
-use crate::rng::Streams;
+use crate::rng::{Stream, Streams};
 
 /// Seed of run `r`'s stream (SplitMix64 finaliser of the pair).
 pub fn run_seed(seed: u64, r: usize) -> u64 {
@@ -30,6 +33,35 @@ pub fn run_seed(seed: u64, r: usize) -> u64 {
     x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     x ^ (x >> 31)
+}
+
+/// Seed of run `r`'s departure stream: [`run_seed`] apart from its main stream.
+fn departure_seed(seed: u64, r: usize) -> u64 {
+    run_seed(seed, r) ^ 0xD1B5_4A32_D192_ED03
+}
+
+/// Per run of `range`, `count` of `candidates` drawn from the run's departure stream (a partial
+/// Fisher–Yates shuffle: one uniform integer per departing agent), so the subsets are nested:
+/// the first `count` of any larger draw.
+pub(crate) fn departure_subsets(
+    seed: u64,
+    range: std::ops::Range<usize>,
+    candidates: &[usize],
+    count: usize,
+) -> Vec<Vec<usize>> {
+    range
+        .map(|r| {
+            let mut rng = Stream::seed_from_u64(departure_seed(seed, r));
+            let mut pool = candidates.to_vec();
+            let count = count.min(pool.len());
+            for k in 0..count {
+                let j = rng.random_range(k..pool.len());
+                pool.swap(k, j);
+            }
+            pool.truncate(count);
+            pool
+        })
+        .collect()
 }
 
 /// A square-root factor `C` (`C Cᵀ = Σ`) applied to batches, in the cheapest exact form.
@@ -319,23 +351,6 @@ impl World {
                 }
             }
         });
-    }
-
-    /// A random subset of `count` of `candidates` per run (partial Fisher–Yates), drawn after
-    /// the initial positions: `out[r]` lists run r's agents.
-    pub(crate) fn subsets(&mut self, candidates: &[usize], count: usize) -> Vec<Vec<usize>> {
-        let mut out = Vec::with_capacity(self.streams.len());
-        self.streams.each(|_, rng| {
-            let mut pool = candidates.to_vec();
-            let count = count.min(pool.len());
-            for k in 0..count {
-                let j = rng.random_range(k..pool.len());
-                pool.swap(k, j);
-            }
-            pool.truncate(count);
-            out.push(pool);
-        });
-        out
     }
 
     /// The draws of one step, in the fixed per-run order.
