@@ -112,12 +112,15 @@ pub struct FaultPlan {
 }
 
 impl FaultPlan {
-    /// Whether measurements can go missing.
+    /// Whether measurements can go missing: then the faults stage tracks which agents are
+    /// present and which edges observed at every step, and the estimators read it. A random
+    /// departure of no agent (a share of 0, rounded) counts, so that the values of a sweep over
+    /// the share step the same loops until the departures ([`crate::sim`]'s `fork`).
     pub fn any(&self) -> bool {
         self.availability < 1.0
             || !self.lost.is_empty()
             || !self.departures.is_empty()
-            || self.random_departures.is_some_and(|(n, _)| n > 0)
+            || self.random_departures.is_some()
     }
 }
 

@@ -11,6 +11,7 @@
 //! shorter ones. `edgekf bench --cost` sets it beside the measured time of every shipped
 //! scenario's estimators.
 
+use super::fork;
 use super::sweep::resolved_key;
 use super::world::Factor;
 use crate::scenario::Scenario;
@@ -43,7 +44,8 @@ const NS_PER_OUTPUT_ROW: f64 = 1000.0;
 
 /// Estimates the cost of running `runs` of the scenario's runs on `threads` threads; a sweep
 /// runs the scenario once per value, and itself (without the sweep) unless one of the values
-/// is that scenario ([`super::sweep`]); each of those counts.
+/// is that scenario ([`super::sweep`]); each of those counts, the steps that values share
+/// ([`super::fork`]) once.
 pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut c = cost_one(sc, runs, threads);
     let Some(points) = sc.sweep().and(sc.sweep_points().ok()) else {
@@ -56,11 +58,20 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
         c.seconds = 0.0;
         c.shared_seconds = 0.0;
     }
-    for p in points {
-        let q = cost_one(&p.scenario, runs, threads);
+    // Values that share their first steps ([`super::fork`]): all but the first of a group
+    // simulate only the steps from the departures on.
+    let scs: Vec<&Scenario> = points.iter().map(|p| &p.scenario).collect();
+    let mut own = vec![1.0; scs.len()];
+    for (members, at) in fork::groups(&scs) {
+        for &k in &members[1..] {
+            own[k] = 1.0 - (at - 1) as f64 / scs[k].steps() as f64;
+        }
+    }
+    for (p, own) in scs.iter().zip(own) {
+        let q = cost_one(p, runs, threads);
         c.bytes += q.bytes;
-        c.seconds += q.seconds;
-        c.shared_seconds += q.shared_seconds;
+        c.seconds += own * q.seconds;
+        c.shared_seconds += own * q.shared_seconds;
     }
     c
 }

@@ -8,11 +8,13 @@
 //! the shared stages, every estimator ([`crate::estimate::Estimator::fork`]), the metrics'
 //! values so far and the recorders — with its own departing agents. A copy steps exactly as
 //! the original would, so each value's results are bit for bit those of simulating it alone
-//! (`tests/sweep_fork.rs` checks every value, with frames, at one and two threads).
+//! (`tests/sweep_base.rs` checks every value, with frames, at one and two threads).
 //!
 //! A group needs at least two values whose scenarios are equal but for the share (compared in
-//! their resolved form), each with at least one departing agent, departing at the same step
-//! after the first; every other value is simulated from its start.
+//! their resolved form and their fault plans), departing at the same step after the first;
+//! every other value is simulated from its start. A share of none is one of them: a random
+//! departure, even of no agent, makes the faults stage track presence from the first step
+//! ([`crate::scenario::FaultPlan::any`]), so its loops are the others' until the departures.
 
 use std::ops::Range;
 
@@ -22,19 +24,21 @@ use super::{assemble, ChunkLoop, Observer, Options, Progress, Results, RunError}
 use crate::scenario::Scenario;
 
 /// What must be equal for values to share their first steps, and the step of their departures:
-/// `None` for a scenario that has no random departure after its first step.
+/// `None` for a scenario that has no random departure after its first step. The key is the
+/// resolved scenario without its sweep, figures and faults, and the checked fault plan with no
+/// agent departing at random (how many depart, the only difference allowed, acts from `at` on).
 pub(crate) fn prefix_key(sc: &Scenario) -> Option<(String, usize)> {
-    let (count, at) = sc.faults().random_departures?;
-    if count == 0 || at < 2 || at > sc.steps() {
+    let (_, at) = sc.faults().random_departures?;
+    if at < 2 || at > sc.steps() {
         return None;
     }
     let mut r = sc.to_resolved();
     r.sweep = None;
     r.plots.clear();
-    if let Some(d) = r.faults.as_mut().and_then(|f| f.random_departures.as_mut()) {
-        d.share = 0.0;
-    }
-    Some((serde_json::to_string(&r).ok()?, at))
+    r.faults = None;
+    let mut plan = sc.faults().clone();
+    plan.random_departures = Some((0, at));
+    Some((format!("{}{plan:?}", serde_json::to_string(&r).ok()?), at))
 }
 
 /// The values `scs` (equal [`prefix_key`]s, departing at step `at`), each with its options
