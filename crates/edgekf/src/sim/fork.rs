@@ -20,7 +20,9 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::{assemble, ChunkLoop, Observer, Options, Progress, Results, RunError};
+use super::{
+    assemble, chunk_ranges, Chunk, ChunkLoop, Observer, Options, Progress, Results, RunError,
+};
 use crate::scenario::Scenario;
 
 /// What must be equal for values to share their first steps, and the step of their departures:
@@ -53,49 +55,18 @@ pub(crate) fn run_group(
     at: usize,
     obs: &dyn Observer,
 ) -> Result<Option<Vec<Results>>, RunError> {
-    let first = scs[0];
-    let runs = first.runs();
-    let chunks = rayon::current_num_threads().clamp(1, runs);
-    let ranges: Vec<Range<usize>> = (0..chunks)
-        .map(|c| c * runs / chunks..(c + 1) * runs / chunks)
-        .filter(|r| !r.is_empty())
-        .collect();
-    // The prefix records frames when a value does (their recorders are copied to it alone).
-    let framed = opts.iter().position(|o| o.frame_runs > 0);
-    let prefix_opt = framed.map_or(opts[0], |v| opts[v]);
-    let parts: Vec<Result<Option<Vec<_>>, RunError>> = ranges
+    let runs = scs[0].runs();
+    let parts: Vec<Result<Option<Vec<Chunk>>, RunError>> = chunk_ranges(&(0..runs))
         .par_iter()
-        .map(|r| {
-            let mut shared = ChunkLoop::new(first, r.clone(), prefix_opt);
-            let mut progress = Progress::new(obs, r.len() * scs.len(), first.steps());
-            if !shared.advance(first, 1..=at - 1, obs, &mut progress) {
-                return Err(RunError::Cancelled);
-            }
-            let mut out = Vec::with_capacity(scs.len());
-            for (v, sc) in scs.iter().enumerate() {
-                let Some(mut value) = shared.fork(sc, framed == Some(v)) else {
-                    return Ok(None);
-                };
-                let mut progress = Progress::new(obs, r.len(), sc.steps());
-                if !value.advance(sc, at..=sc.steps(), obs, &mut progress) {
-                    return Err(RunError::Cancelled);
-                }
-                out.push(value.finish());
-            }
-            Ok(Some(out))
-        })
+        .map(|r| group_chunk(scs, opts, r.clone(), at, obs))
         .collect();
-    let mut per_chunk = Vec::with_capacity(parts.len());
-    for p in parts {
-        match p? {
-            Some(values) => per_chunk.push(values),
-            None => return Ok(None),
-        }
-    }
-    // Transpose: per value, its chunks in run order.
-    let mut per_value: Vec<Vec<_>> = (0..scs.len()).map(|_| Vec::new()).collect();
-    for chunk in per_chunk {
-        for (v, c) in chunk.into_iter().enumerate() {
+    // Per value, its chunks in run order.
+    let mut per_value: Vec<Vec<Chunk>> = (0..scs.len()).map(|_| Vec::new()).collect();
+    for part in parts {
+        let Some(values) = part? else {
+            return Ok(None);
+        };
+        for (v, c) in values.into_iter().enumerate() {
             per_value[v].push(c);
         }
     }
@@ -106,6 +77,37 @@ pub(crate) fn run_group(
             .map(|(parts, (sc, &opt))| assemble(sc, 0..runs, parts, opt))
             .collect(),
     ))
+}
+
+/// Runs `range` of every value of a group: stepped once to step `at − 1` (recording frames when
+/// a value does: its copy alone keeps them), then each value on from a copy.
+fn group_chunk(
+    scs: &[&Scenario],
+    opts: &[Options],
+    range: Range<usize>,
+    at: usize,
+    obs: &dyn Observer,
+) -> Result<Option<Vec<Chunk>>, RunError> {
+    let first = scs[0];
+    let framed = opts.iter().position(|o| o.frame_runs > 0);
+    let prefix_opt = framed.map_or(opts[0], |v| opts[v]);
+    let mut shared = ChunkLoop::new(first, range.clone(), prefix_opt);
+    let mut progress = Progress::new(obs, range.len() * scs.len(), first.steps());
+    if !shared.advance(first, 1..=at - 1, obs, &mut progress) {
+        return Err(RunError::Cancelled);
+    }
+    let mut out = Vec::with_capacity(scs.len());
+    for (v, sc) in scs.iter().enumerate() {
+        let Some(mut value) = shared.fork(sc, framed == Some(v)) else {
+            return Ok(None);
+        };
+        let mut progress = Progress::new(obs, range.len(), sc.steps());
+        if !value.advance(sc, at..=sc.steps(), obs, &mut progress) {
+            return Err(RunError::Cancelled);
+        }
+        out.push(value.finish());
+    }
+    Ok(Some(out))
 }
 
 /// The groups among `scs` (indices, in order) that share their first steps, with the step of

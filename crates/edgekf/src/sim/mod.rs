@@ -330,13 +330,7 @@ pub fn run_range(
         !range.is_empty() && range.end <= sc.runs(),
         "a non-empty range of the scenario's runs"
     );
-    let runs = range.len();
-    let chunks = rayon::current_num_threads().clamp(1, runs);
-    let ranges: Vec<Range<usize>> = (0..chunks)
-        .map(|c| range.start + c * runs / chunks..range.start + (c + 1) * runs / chunks)
-        .filter(|r| !r.is_empty())
-        .collect();
-    let parts: Vec<Option<Chunk>> = ranges
+    let parts: Vec<Option<Chunk>> = chunk_ranges(&range)
         .par_iter()
         .map(|r| run_chunk(sc, r.clone(), obs, opt))
         .collect();
@@ -345,6 +339,16 @@ pub fn run_range(
         .collect::<Option<_>>()
         .ok_or(RunError::Cancelled)?;
     Ok(assemble(sc, range, parts, opt))
+}
+
+/// The chunks of runs `range`: one contiguous range per thread of the current pool.
+pub(crate) fn chunk_ranges(range: &Range<usize>) -> Vec<Range<usize>> {
+    let runs = range.len();
+    let chunks = rayon::current_num_threads().clamp(1, runs);
+    (0..chunks)
+        .map(|c| range.start + c * runs / chunks..range.start + (c + 1) * runs / chunks)
+        .filter(|r| !r.is_empty())
+        .collect()
 }
 
 /// Checks that shards are of one study and cover its runs once, in order.
