@@ -96,6 +96,16 @@
 
 pub mod agent;
 pub mod control;
+
+/// A copy of `v` with the room `v` reserved (a plain `clone` keeps only its length): a buffer
+/// that the step loop fills by pushes, copied for a sweep value that goes on from shared first
+/// steps (`sim::fork`), keeps filling without allocating.
+pub(crate) fn clone_reserved<T: Clone>(v: &Vec<T>) -> Vec<T> {
+    let mut c = Vec::with_capacity(v.capacity());
+    c.extend_from_slice(v);
+    c
+}
+
 pub mod design;
 pub mod estimate;
 pub mod framework;

@@ -35,6 +35,7 @@ static GLOBAL: Counting = Counting;
 fn step_loops_allocate_nothing() {
     allocations_do_not_grow_with_steps();
     ca_filters_allocate_nothing_per_step();
+    forked_sweep_values_allocate_nothing_per_step();
     a_large_run_on_two_threads_allocates_nothing_per_step();
 }
 
@@ -159,5 +160,58 @@ edge = [1, 0]
     assert_eq!(
         short, long,
         "{faults}: allocations: {short} for 200 steps, {long} for 2000 steps"
+    );
+}
+
+/// A sweep over the share of departing agents steps its values together until the departures
+/// and each from a copy of the whole state after them (`sim::fork`): copying allocates once, the
+/// copies' steps nothing (a copy must keep the room its buffers reserved).
+fn forked_sweep_values_allocate_nothing_per_step() {
+    let pool = started_pool(1);
+    let count = |steps: usize| {
+        let text = format!(
+            r#"
+name = "fork-alloc"
+estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }},
+  {{ kind = "rkf-ca", label = "rkf-ca-adaptive", adaptive = "both" }},
+  {{ kind = "garkf", label = "garkf-adaptive", adaptive = true }}, "rkf", "jrkf", "mle"]
+[framework]
+preset = "hexagon"
+[sim]
+dt = 0.01
+steps = {steps}
+runs = 5
+every = {every}
+seed = 10
+[faults]
+random_departures = {{ share = 0.25, at = 1.0 }}
+[metrics]
+edge = [1, 0]
+[sweep]
+parameter = "faults.random_departures.share"
+values = [0.0, 0.25]
+"#,
+            every = steps / 2
+        );
+        let spec = edgekf_io::spec_from_toml(&text).unwrap();
+        let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
+        pool.install(|| {
+            let before = ALLOCS.load(Ordering::SeqCst);
+            let res = edgekf::sim::sweep::run(&sc, &edgekf::sim::Quiet).unwrap();
+            let after = ALLOCS.load(Ordering::SeqCst);
+            for p in &res.points {
+                for e in &p.results.estimators {
+                    assert_eq!(e.outcome, edgekf::sim::Outcome::Completed, "{}", e.label);
+                }
+            }
+            after - before
+        })
+    };
+    count(200);
+    let short = count(200);
+    let long = count(2000);
+    assert_eq!(
+        short, long,
+        "forked sweep: allocations: {short} for 200 steps, {long} for 2000 steps"
     );
 }

@@ -81,7 +81,7 @@ pub(crate) struct Place {
 const MAX_CLASSES: usize = 8;
 
 /// The classes of one edge's runs.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Classes {
     runs: usize,
     /// Lanes per run.
@@ -104,8 +104,26 @@ pub(crate) struct Classes {
     per_run: bool,
 }
 
+impl Clone for Classes {
+    /// A copy with `solo`'s room for every run (a run taking its own covariance does not
+    /// allocate).
+    fn clone(&self) -> Self {
+        Self {
+            runs: self.runs,
+            a: self.a,
+            count: self.count.clone(),
+            kind: self.kind.clone(),
+            slots: self.slots,
+            of: self.of.clone(),
+            solo: crate::clone_reserved(&self.solo),
+            last: self.last.clone(),
+            per_run: self.per_run,
+        }
+    }
+}
+
 /// Scratch of [`Classes::correct`], one for every edge.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub(crate) struct ClassWork {
     direct: Vec<u32>,
     none: Vec<u32>,
@@ -114,6 +132,20 @@ pub(crate) struct ClassWork {
     rt: Vec<f64>,
     mask: Vec<bool>,
     pairs: Vec<(u32, u32)>,
+}
+
+impl Clone for ClassWork {
+    /// A copy with `pairs`' room for every lane.
+    fn clone(&self) -> Self {
+        Self {
+            direct: self.direct.clone(),
+            none: self.none.clone(),
+            target: self.target.clone(),
+            rt: self.rt.clone(),
+            mask: self.mask.clone(),
+            pairs: crate::clone_reserved(&self.pairs),
+        }
+    }
 }
 
 impl ClassWork {
@@ -492,5 +524,21 @@ impl Classes {
             }
         }
         self.lay_out_per_run(bank, &mut vec![false; self.a * self.runs]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ClassWork, Classes};
+
+    #[test]
+    fn a_copy_keeps_the_room_every_run_may_take() {
+        // A sweep value copied after shared first steps (`sim::fork`): runs taking their own
+        // covariance, and the correction's pairs, must not allocate.
+        let (runs, a) = (50, 2);
+        let copy = Classes::new(runs, a).clone();
+        assert!(copy.solo.capacity() >= runs);
+        let work = ClassWork::new(runs, a, 6).clone();
+        assert!(work.pairs.capacity() >= runs * a);
     }
 }

@@ -115,7 +115,9 @@ impl FaultPlan {
     /// Whether measurements can go missing: then the faults stage tracks which agents are
     /// present and which edges observed at every step, and the estimators read it. A random
     /// departure of no agent (a share of 0, rounded) counts, so that the values of a sweep over
-    /// the share step the same loops until the departures ([`crate::sim`]'s `fork`).
+    /// the share step the same loops until the departures ([`crate::sim`]'s `fork`); every
+    /// agent staying, the results are those of no departure (bit for bit but for the CRKF,
+    /// which adds its information edge by edge on this path).
     pub fn any(&self) -> bool {
         self.availability < 1.0
             || !self.lost.is_empty()

@@ -318,12 +318,13 @@ impl Default for FaultSpec {
 }
 
 impl FaultSpec {
-    /// Whether any fault is configured.
+    /// Whether any fault is configured; a random departure counts whatever its share (the
+    /// checked plan's [`crate::scenario::FaultPlan::any`] agrees, so `scenario.json` keeps it).
     pub fn any(&self) -> bool {
         self.availability < 1.0
             || !self.lost.is_empty()
             || !self.departures.is_empty()
-            || self.random_departures.is_some_and(|r| r.share > 0.0)
+            || self.random_departures.is_some()
     }
 }
 

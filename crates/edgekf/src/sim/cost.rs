@@ -45,7 +45,7 @@ const NS_PER_OUTPUT_ROW: f64 = 1000.0;
 /// Estimates the cost of running `runs` of the scenario's runs on `threads` threads; a sweep
 /// runs the scenario once per value, and itself (without the sweep) unless one of the values
 /// is that scenario ([`super::sweep`]); each of those counts, the steps that values share
-/// ([`super::fork`]) once.
+/// (`sim::fork`) once.
 pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
     let mut c = cost_one(sc, runs, threads);
     let Some(points) = sc.sweep().and(sc.sweep_points().ok()) else {
@@ -58,7 +58,7 @@ pub fn cost(sc: &Scenario, runs: usize, threads: usize) -> StudyCost {
         c.seconds = 0.0;
         c.shared_seconds = 0.0;
     }
-    // Values that share their first steps ([`super::fork`]): all but the first of a group
+    // Values that share their first steps (`sim::fork`): all but the first of a group
     // simulate only the steps from the departures on.
     let scs: Vec<&Scenario> = points.iter().map(|p| &p.scenario).collect();
     let mut own = vec![1.0; scs.len()];

@@ -91,7 +91,23 @@ fn group_chunk(
     let first = scs[0];
     let framed = opts.iter().position(|o| o.frame_runs > 0);
     let prefix_opt = framed.map_or(opts[0], |v| opts[v]);
+    debug_assert!(
+        opts.iter().all(|o| Options {
+            frame_runs: 0,
+            frame_limit: 0,
+            ..*o
+        } == Options {
+            frame_runs: 0,
+            frame_limit: 0,
+            ..opts[0]
+        }),
+        "the values' options differ only in their frames"
+    );
     let mut shared = ChunkLoop::new(first, range.clone(), prefix_opt);
+    if shared.fork(first, false).is_none() {
+        // An estimator that cannot be copied: find out before stepping anything.
+        return Ok(None);
+    }
     let mut progress = Progress::new(obs, range.len() * scs.len(), first.steps());
     if !shared.advance(first, 1..=at - 1, obs, &mut progress) {
         return Err(RunError::Cancelled);

@@ -12,7 +12,7 @@ use crate::scenario::Scenario;
 
 /// One run's frames for one estimator, frame-major (frame `f` of the [`super::Results`]'s
 /// `frame_steps`; fewer frames when the estimator diverged).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct RunFrames {
     /// The run (global index).
     pub run: usize,
@@ -31,6 +31,21 @@ pub struct RunFrames {
     pub observed: Vec<bool>,
     /// Whether agent `i` was present: `[f · N + i]`.
     pub present: Vec<bool>,
+}
+
+impl Clone for RunFrames {
+    /// A copy with the room the original reserved for its frames (recording does not allocate).
+    fn clone(&self) -> Self {
+        Self {
+            run: self.run,
+            frames: self.frames,
+            positions: crate::clone_reserved(&self.positions),
+            estimates: crate::clone_reserved(&self.estimates),
+            covariances: crate::clone_reserved(&self.covariances),
+            observed: crate::clone_reserved(&self.observed),
+            present: crate::clone_reserved(&self.present),
+        }
+    }
 }
 
 /// What a chunk records: the reports, and its runs among the recorded ones.
@@ -63,7 +78,6 @@ pub(crate) fn plan(sc: &Scenario, range: &Range<usize>, opt: Options) -> Option<
 }
 
 /// Records [`RunFrames`] of some runs of a chunk at the chosen reports.
-#[derive(Clone)]
 pub(crate) struct FrameRecorder {
     /// The reports to record (indices into the scenario's reported steps), ascending.
     wanted: Vec<usize>,
@@ -112,6 +126,21 @@ impl FrameRecorder {
             runs,
             recorded,
             cov: vec![0.0; d * d],
+        }
+    }
+}
+
+impl Clone for FrameRecorder {
+    fn clone(&self) -> Self {
+        Self {
+            wanted: self.wanted.clone(),
+            seen: self.seen,
+            next: self.next,
+            d: self.d,
+            runs: self.runs,
+            recorded: self.recorded.clone(),
+            targets: crate::clone_reserved(&self.targets),
+            cov: self.cov.clone(),
         }
     }
 }
@@ -183,7 +212,25 @@ pub fn thin_frames(path: &[usize], limit: usize) -> Vec<usize> {
 
 #[cfg(test)]
 mod tests {
-    use super::thin_frames;
+    use super::{thin_frames, FramePlan, FrameRecorder};
+
+    #[test]
+    fn a_copy_keeps_the_room_for_every_frame() {
+        // A sweep value copied after shared first steps records its frames without allocating.
+        let plan = FramePlan {
+            reports: vec![0, 3, 7],
+            runs: vec![(1, 1)],
+        };
+        let rec = FrameRecorder::new(&plan, (4, 10, 2), 3);
+        let copy = rec.clone();
+        let (a, b) = (&rec.recorded[0].1, &copy.recorded[0].1);
+        assert!(b.positions.capacity() >= a.positions.capacity());
+        assert!(b.estimates.capacity() >= 3 * 10 * 2);
+        assert!(b.covariances.capacity() >= 3 * 10 * 3);
+        assert!(b.observed.capacity() >= 3 * 10);
+        assert!(b.present.capacity() >= 3 * 4);
+        assert!(copy.targets.capacity() >= 3 * 4 * 2);
+    }
 
     #[test]
     fn thinning_keeps_the_ends_and_at_most_the_limit() {

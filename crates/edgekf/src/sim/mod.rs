@@ -63,7 +63,9 @@ pub trait Observer: Sync {
     /// (`sc.estimators()[index]`) as it stands (`x̂_{k|k}` and its covariances) for the chunk of
     /// runs `runs` (global indices: its run `r` is run `runs.start + r` of the study). Called
     /// from the chunks' threads, and not after the estimator stopped; it cannot change a
-    /// result. The invariant tests use it to check every estimator's covariances.
+    /// result. The invariant tests use it to check every estimator's covariances. In a sweep
+    /// whose values share their first steps (`fork`), a report before they part is seen once
+    /// for all of them, and the same `(k, index, runs)` once per value after.
     fn on_estimator(&self, _k: usize, _index: usize, _runs: Range<usize>, _est: &dyn Estimator) {}
 }
 

@@ -27,7 +27,6 @@ pub(crate) trait LaneObserver: Send {
 }
 
 /// The positions and inputs of one run at the reported steps (`paths.csv`, `inputs.csv`).
-#[derive(Clone)]
 pub(crate) struct PathRecorder {
     /// The run's index in the chunk.
     run: usize,
@@ -46,6 +45,16 @@ impl PathRecorder {
             rows,
             paths: Vec::with_capacity(reports * rows),
             inputs: Vec::with_capacity(reports * rows),
+        }
+    }
+}
+
+impl Clone for PathRecorder {
+    fn clone(&self) -> Self {
+        Self {
+            paths: crate::clone_reserved(&self.paths),
+            inputs: crate::clone_reserved(&self.inputs),
+            ..*self
         }
     }
 }
@@ -127,5 +136,17 @@ impl LaneObserver for InputAutocov {
     }
     fn finish(self: Box<Self>, out: &mut LaneOut) {
         out.acov = self.acov;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PathRecorder;
+
+    #[test]
+    fn a_copy_keeps_the_room_for_every_report() {
+        let copy = PathRecorder::new(0, 5, 20, 30).clone();
+        assert!(copy.paths.capacity() >= 20 * 30);
+        assert!(copy.inputs.capacity() >= 20 * 30);
     }
 }

@@ -17,7 +17,7 @@
 //!
 //! The scenario as written is run too (or taken from the value equal to it), for `metrics.csv`.
 //! Values that are the same runs until agents depart at random are stepped together until
-//! then ([`super::fork`]); each value's results are still those of simulating it alone.
+//! then (`sim::fork`); each value's results are still those of simulating it alone.
 
 use std::ops::Range;
 

@@ -12,7 +12,7 @@
 //! New draws are appended, never reordered: that order is part of the reproducibility contract.
 //!
 //! With random departures, run `r`'s departing agents come from a stream of their own
-//! ([`departure_subsets`]), so none of the draws above depends on the share that leaves: the
+//! (`departure_subsets`), so none of the draws above depends on the share that leaves: the
 //! values of a sweep over the share are the same runs until the departures (common random
 //! numbers), and a larger share's departing agents include a smaller share's.
 
