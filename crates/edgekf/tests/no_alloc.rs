@@ -124,14 +124,15 @@ fn ca_filters_allocate_nothing_per_step() {
     }
 }
 
-fn ca_filters_allocate_nothing_per_step_with(pool: &rayon::ThreadPool, faults: &str) {
-    let count = |steps: usize| {
-        let text = format!(
-            r#"
+/// The CA filters' study on the thesis hexagon: `steps` steps reporting 3 of them, 5 runs, the
+/// CA filters and `more` estimators, then the sections `tail` (faults, metrics, a sweep).
+fn ca_scenario(steps: usize, more: &str, tail: &str) -> edgekf::scenario::Scenario {
+    let text = format!(
+        r#"
 name = "ca-alloc"
 estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }},
   {{ kind = "rkf-ca", label = "rkf-ca-adaptive", adaptive = "both" }},
-  {{ kind = "garkf", label = "garkf-adaptive", adaptive = true }}]
+  {{ kind = "garkf", label = "garkf-adaptive", adaptive = true }}{more}]
 [framework]
 preset = "hexagon"
 [sim]
@@ -142,17 +143,17 @@ every = {every}
 # A seed whose departures keep the formation (a follower among 5, 7, 9 of the hexagon
 # leaving breaks its stress's equilibrium, and the run diverges).
 seed = 10
-[faults]
-{faults}
-[metrics]
-edge = [1, 0]
+{tail}
 "#,
-            every = steps / 2
-        );
-        let spec = edgekf_io::spec_from_toml(&text).unwrap();
-        let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
-        allocations(pool, &sc)
-    };
+        every = steps / 2
+    );
+    let spec = edgekf_io::spec_from_toml(&text).unwrap();
+    edgekf::scenario::Scenario::from_spec(&spec, None).unwrap()
+}
+
+fn ca_filters_allocate_nothing_per_step_with(pool: &rayon::ThreadPool, faults: &str) {
+    let tail = format!("[faults]\n{faults}\n[metrics]\nedge = [1, 0]");
+    let count = |steps: usize| allocations(pool, &ca_scenario(steps, "", &tail));
     // A first run initialises a process-wide cache once (one allocation); not counted.
     count(200);
     let short = count(200);
@@ -168,33 +169,15 @@ edge = [1, 0]
 /// copies' steps nothing (a copy must keep the room its buffers reserved).
 fn forked_sweep_values_allocate_nothing_per_step() {
     let pool = started_pool(1);
-    let count = |steps: usize| {
-        let text = format!(
-            r#"
-name = "fork-alloc"
-estimators = ["none", "rkf-ca", "garkf", {{ kind = "garkf", label = "translation", ral = "translation" }},
-  {{ kind = "rkf-ca", label = "rkf-ca-adaptive", adaptive = "both" }},
-  {{ kind = "garkf", label = "garkf-adaptive", adaptive = true }}, "rkf", "jrkf", "mle"]
-[framework]
-preset = "hexagon"
-[sim]
-dt = 0.01
-steps = {steps}
-runs = 5
-every = {every}
-seed = 10
-[faults]
-random_departures = {{ share = 0.25, at = 1.0 }}
+    let tail = r#"[faults]
+random_departures = { share = 0.25, at = 1.0 }
 [metrics]
 edge = [1, 0]
 [sweep]
 parameter = "faults.random_departures.share"
-values = [0.0, 0.25]
-"#,
-            every = steps / 2
-        );
-        let spec = edgekf_io::spec_from_toml(&text).unwrap();
-        let sc = edgekf::scenario::Scenario::from_spec(&spec, None).unwrap();
+values = [0.0, 0.25]"#;
+    let count = |steps: usize| {
+        let sc = ca_scenario(steps, r#", "rkf", "jrkf", "mle""#, tail);
         pool.install(|| {
             let before = ALLOCS.load(Ordering::SeqCst);
             let res = edgekf::sim::sweep::run(&sc, &edgekf::sim::Quiet).unwrap();
