@@ -162,93 +162,131 @@ pub fn psd_factor(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 pub fn batch_gemv_acc(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize) {
     debug_assert_eq!(k.len(), n * n);
     debug_assert!(v.len() >= n * runs && x.len() >= n * runs);
-    if runs == 1 {
-        // One run (large networks): no branch per entry. The sum runs in the same order as
-        // below (adding 0·v leaves a nonzero sum unchanged), so results do not depend on how
-        // runs are chunked.
-        let v = &v[..n];
-        for (xa, ka) in x[..n].iter_mut().zip(k.chunks_exact(n)) {
-            let mut acc = *xa;
-            for (kb, vb) in ka.iter().zip(v) {
-                acc += kb * vb;
-            }
-            *xa = acc;
-        }
-        return;
-    }
     with_avx2(
         #[inline(always)]
-        || gemv_acc_runs(k, n, v, x, runs),
+        || gemv_panels(k, (n, n), v, x, runs, Start::FromX),
     );
 }
-
-/// The batched body of [`batch_gemv_acc`]: each row's sums for [`RUN_BLOCK`] runs at a time kept
-/// in registers over the whole row of the gain (zero gains skipped), in the order
-/// `((x + k₀ v₀) + k₁ v₁) + …` whatever the block.
-#[inline(always)]
-fn gemv_acc_runs(k: &[f64], n: usize, v: &[f64], x: &mut [f64], runs: usize) {
-    let full = runs - runs % RUN_BLOCK;
-    for a in 0..n {
-        let ka = &k[a * n..(a + 1) * n];
-        let xa = &mut x[a * runs..(a + 1) * runs];
-        for c in (0..full).step_by(RUN_BLOCK) {
-            let mut acc: [f64; RUN_BLOCK] = xa[c..c + RUN_BLOCK].try_into().expect("a block");
-            for (b, &kab) in ka.iter().enumerate() {
-                if kab == 0.0 {
-                    continue;
-                }
-                let vb: &[f64; RUN_BLOCK] = v[b * runs + c..b * runs + c + RUN_BLOCK]
-                    .try_into()
-                    .expect("a block");
-                for l in 0..RUN_BLOCK {
-                    acc[l] += kab * vb[l];
-                }
-            }
-            xa[c..c + RUN_BLOCK].copy_from_slice(&acc);
-        }
-        // The last runs one at a time, their sums in a register too.
-        for (r, xr) in xa.iter_mut().enumerate().skip(full) {
-            let mut acc = *xr;
-            for (b, &kab) in ka.iter().enumerate() {
-                if kab != 0.0 {
-                    acc += kab * v[b * runs + r];
-                }
-            }
-            *xr = acc;
-        }
-    }
-}
-
-/// Runs whose sums [`batch_gemv_acc`] keeps in registers together (four AVX2 vectors: four
-/// independent chains of additions).
-const RUN_BLOCK: usize = 16;
 
 /// `x[a] = Σ_b m[a, b] · v[b]` for every run, with `m` a dense `rows × cols` row-major matrix.
 #[inline]
 pub fn batch_gemv(m: &[f64], rows: usize, cols: usize, v: &[f64], x: &mut [f64], runs: usize) {
+    debug_assert!(m.len() >= rows * cols);
+    debug_assert!(v.len() >= cols * runs && x.len() >= rows * runs);
     // AVX2 without fused multiply–add: the bits of the portable code.
     with_avx2(
         #[inline(always)]
-        || gemv_runs(m, (rows, cols), v, x, runs),
+        || gemv_panels(m, (rows, cols), v, x, runs, Start::Zero),
     );
 }
 
-/// The body of [`batch_gemv`].
+/// Where a batched product's sums start: at zero, or at the output's values.
+#[derive(Clone, Copy, PartialEq)]
+enum Start {
+    Zero,
+    FromX,
+}
+
+/// Runs whose sums the batched products keep in registers together: with two rows of the
+/// matrix at a time, eight AVX2 vectors — eight independent chains of additions, and each
+/// vector of `v` loaded once for both rows.
+const RUN_BLOCK: usize = 16;
+
+/// The body of [`batch_gemv`] and [`batch_gemv_acc`]: two rows of `m` at a time, each block of
+/// runs' sums in registers over the whole row (zero entries of `m` skipped), in the order
+/// `((s + m₀ v₀) + m₁ v₁) + …` with `s` zero or the output's value — whatever the blocking, so
+/// the bits do not depend on the number of runs or how they are chunked.
 #[inline(always)]
-fn gemv_runs(m: &[f64], (rows, cols): (usize, usize), v: &[f64], x: &mut [f64], runs: usize) {
-    x[..rows * runs].fill(0.0);
-    for a in 0..rows {
-        let xa = &mut x[a * runs..(a + 1) * runs];
-        for b in 0..cols {
-            let mab = m[a * cols + b];
-            if mab == 0.0 {
-                continue;
-            }
-            let vb = &v[b * runs..(b + 1) * runs];
-            for (xr, vr) in xa.iter_mut().zip(vb) {
-                *xr += mab * vr;
+fn gemv_panels(
+    m: &[f64],
+    (rows, cols): (usize, usize),
+    v: &[f64],
+    x: &mut [f64],
+    runs: usize,
+    start: Start,
+) {
+    let mut a = 0;
+    while a + 2 <= rows {
+        gemv_panel::<2>(m, cols, a, v, x, runs, start);
+        a += 2;
+    }
+    if a < rows {
+        gemv_panel::<1>(m, cols, a, v, x, runs, start);
+    }
+}
+
+/// Rows `a..a + R` of the product for every run: blocks of [`RUN_BLOCK`] runs, then the last
+/// runs in blocks of 8, 4, 2 and 1.
+#[inline(always)]
+fn gemv_panel<const R: usize>(
+    m: &[f64],
+    cols: usize,
+    a: usize,
+    v: &[f64],
+    x: &mut [f64],
+    runs: usize,
+    start: Start,
+) {
+    let rows = &m[a * cols..(a + R) * cols];
+    let out = &mut x[a * runs..(a + R) * runs];
+    let mut c = 0;
+    while c + RUN_BLOCK <= runs {
+        gemv_block::<R, RUN_BLOCK>(rows, cols, v, out, (runs, c), start);
+        c += RUN_BLOCK;
+    }
+    if c + 8 <= runs {
+        gemv_block::<R, 8>(rows, cols, v, out, (runs, c), start);
+        c += 8;
+    }
+    if c + 4 <= runs {
+        gemv_block::<R, 4>(rows, cols, v, out, (runs, c), start);
+        c += 4;
+    }
+    if c + 2 <= runs {
+        gemv_block::<R, 2>(rows, cols, v, out, (runs, c), start);
+        c += 2;
+    }
+    if c < runs {
+        gemv_block::<R, 1>(rows, cols, v, out, (runs, c), start);
+    }
+}
+
+/// Runs `c..c + W` of `R` rows (`rows`: their entries of `m`, `out`: their outputs).
+#[inline(always)]
+fn gemv_block<const R: usize, const W: usize>(
+    rows: &[f64],
+    cols: usize,
+    v: &[f64],
+    out: &mut [f64],
+    (runs, c): (usize, usize),
+    start: Start,
+) {
+    let mut acc = [[0.0; W]; R];
+    if start == Start::FromX {
+        for (i, acc_i) in acc.iter_mut().enumerate() {
+            *acc_i = out[i * runs + c..i * runs + c + W]
+                .try_into()
+                .expect("a block");
+        }
+    }
+    for b in 0..cols {
+        let k: [f64; R] = std::array::from_fn(|i| rows[i * cols + b]);
+        if k.iter().all(|&kb| kb == 0.0) {
+            continue;
+        }
+        let vb: &[f64; W] = v[b * runs + c..b * runs + c + W]
+            .try_into()
+            .expect("a block");
+        for (acc_i, &kb) in acc.iter_mut().zip(&k) {
+            if kb != 0.0 {
+                for l in 0..W {
+                    acc_i[l] += kb * vb[l];
+                }
             }
         }
+    }
+    for (i, acc_i) in acc.iter().enumerate() {
+        out[i * runs + c..i * runs + c + W].copy_from_slice(acc_i);
     }
 }
 
@@ -351,5 +389,75 @@ mod tests {
         let f = psd_factor(&s).unwrap();
         assert!((&f * f.transpose() - &s).amax() < 1e-14);
         assert!(psd_factor(&DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0])).is_none());
+    }
+
+    /// Values with exact zeros, negative zeros and both signs, from a fixed sequence.
+    fn values(n: usize, seed: u64) -> Vec<f64> {
+        (0..n as u64)
+            .map(|i| match (i * 7 + seed) % 11 {
+                0 => 0.0,
+                1 => -0.0,
+                k => ((i * 7919 + seed * 104_729) % 1_000) as f64 / 137.0 - 3.5 + k as f64,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn batched_products_are_the_row_by_row_sums_bit_for_bit() {
+        // Every tail of the run blocking (16, 8, 4, 2, 1), odd row counts (a last row alone),
+        // zero entries skipped: each output is `((s + m₀ v₀) + m₁ v₁) + …` over the nonzero
+        // entries, `s` zero or the output's value.
+        for rows in [1, 2, 3, 5, 18] {
+            for cols in [1, 2, 7, 18] {
+                for runs in [1, 2, 3, 4, 7, 8, 15, 16, 17, 31, 50] {
+                    let m = values(rows * cols, 1);
+                    let v = values(cols * runs, 2);
+                    let x0 = values(rows * runs, 3);
+                    let reference = |start: bool| -> Vec<u64> {
+                        let mut out = Vec::with_capacity(rows * runs);
+                        for a in 0..rows {
+                            for r in 0..runs {
+                                let mut acc = if start { x0[a * runs + r] } else { 0.0 };
+                                for b in 0..cols {
+                                    if m[a * cols + b] != 0.0 {
+                                        acc += m[a * cols + b] * v[b * runs + r];
+                                    }
+                                }
+                                out.push(acc.to_bits());
+                            }
+                        }
+                        out
+                    };
+                    let mut x = x0.clone();
+                    batch_gemv(&m, rows, cols, &v, &mut x, runs);
+                    let bits: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+                    assert_eq!(bits, reference(false), "{rows} × {cols}, {runs} runs");
+                    if rows == cols {
+                        let mut x = x0.clone();
+                        batch_gemv_acc(&m, rows, &v, &mut x, runs);
+                        let bits: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+                        assert_eq!(bits, reference(true), "{rows} × {cols}, {runs} runs, acc");
+                    }
+                }
+            }
+        }
+        // A zero entry adds nothing — not even `+0` to a `−0` sum, nor `0 · ∞`.
+        for runs in [1, 5, 16, 50] {
+            let v: Vec<f64> = [f64::INFINITY; 50][..runs]
+                .iter()
+                .chain(&[1.5; 50][..runs])
+                .copied()
+                .collect();
+            let mut x = vec![-0.0; runs];
+            batch_gemv_acc(&[0.0], 1, &v, &mut x, runs);
+            assert!(x.iter().all(|v| v.to_bits() == (-0.0f64).to_bits()));
+            // Two rows at a time, each with its own zero.
+            let mut x = vec![-0.0; 2 * runs];
+            batch_gemv_acc(&[0.0, 2.0, 1.0, 0.0], 2, &v, &mut x, runs);
+            assert!(x[..runs].iter().all(|&v| v == 3.0), "{x:?}");
+            assert!(x[runs..].iter().all(|&v| v == f64::INFINITY), "{x:?}");
+            batch_gemv(&[0.0, 2.0], 1, 2, &v, &mut x, runs);
+            assert!(x[..runs].iter().all(|&v| v == 3.0), "{x:?}");
+        }
     }
 }

@@ -357,15 +357,14 @@ impl Crkf {
         let (r, d) = (self.runs, self.dim);
         let faults = s.faults.measurement_faults();
         for (e, &(i, j)) in self.edges.iter().enumerate() {
-            self.s.fill(0.0);
             s.means.edges_into(e, &mut self.y_edge);
-            batch_gemv_acc(
-                &self.w_inv[e * d * d..(e + 1) * d * d],
-                d,
-                &self.y_edge,
-                &mut self.s,
-                r,
-            );
+            let w = &self.w_inv[e * d * d..(e + 1) * d * d];
+            if d == 2 && !faults {
+                add_edge_vector2(w, &self.y_edge, &mut self.b, (i, j), r);
+                continue;
+            }
+            self.s.fill(0.0);
+            batch_gemv_acc(w, d, &self.y_edge, &mut self.s, r);
             if faults {
                 for (run, &seen) in s.faults.observed_row(e).iter().enumerate() {
                     if !seen {
@@ -385,6 +384,64 @@ impl Crkf {
             }
         }
     }
+}
+
+/// `b_i += W⁻¹ ȳ_e`, `b_j −= W⁻¹ ȳ_e` for edge `(i, j)` with D = 2 (`w`: `W⁻¹` row-major, `y`:
+/// the edge's means, 2 rows × runs): the general path's operations in one pass. Its product
+/// starts at zero and skips zero entries of `W⁻¹`; here a skipped term is `+0`, which adds
+/// nothing because a sum `0 + a` is never `−0` — so the bits are the general path's.
+#[inline]
+fn add_edge_vector2(w: &[f64], y: &[f64], b: &mut [f64], (i, j): (usize, usize), runs: usize) {
+    let [k0, k1, k2, k3]: [f64; 4] = w.try_into().expect("a 2 × 2 matrix");
+    let (y0, y1) = y[..2 * runs].split_at(runs);
+    let block = 2 * runs;
+    // Agent 0's rows are not in ζ: a scratch row pair stands in for them.
+    let (lo, hi) = (i.min(j), i.max(j));
+    if hi == 0 {
+        return;
+    }
+    let (head, tail) = b.split_at_mut((hi - 1) * block);
+    let rows_hi = &mut tail[..block];
+    let rows_lo = if lo > 0 {
+        Some(&mut head[(lo - 1) * block..lo * block])
+    } else {
+        None
+    };
+    // b_i gains the product, b_j loses it.
+    let (sign_lo, sign_hi) = if i < j { (1.0, -1.0) } else { (-1.0, 1.0) };
+    crate::linalg::with_avx2(
+        #[inline(always)]
+        || {
+            let (h0, h1) = rows_hi.split_at_mut(runs);
+            match rows_lo {
+                Some(rows_lo) => {
+                    let (l0, l1) = rows_lo.split_at_mut(runs);
+                    for r in 0..runs {
+                        let (v0, v1) = (y0[r], y1[r]);
+                        let s0 = (0.0 + if k0 != 0.0 { k0 * v0 } else { 0.0 })
+                            + if k1 != 0.0 { k1 * v1 } else { 0.0 };
+                        let s1 = (0.0 + if k2 != 0.0 { k2 * v0 } else { 0.0 })
+                            + if k3 != 0.0 { k3 * v1 } else { 0.0 };
+                        l0[r] += sign_lo * s0;
+                        l1[r] += sign_lo * s1;
+                        h0[r] += sign_hi * s0;
+                        h1[r] += sign_hi * s1;
+                    }
+                }
+                None => {
+                    for r in 0..runs {
+                        let (v0, v1) = (y0[r], y1[r]);
+                        let s0 = (0.0 + if k0 != 0.0 { k0 * v0 } else { 0.0 })
+                            + if k1 != 0.0 { k1 * v1 } else { 0.0 };
+                        let s1 = (0.0 + if k2 != 0.0 { k2 * v0 } else { 0.0 })
+                            + if k3 != 0.0 { k3 * v1 } else { 0.0 };
+                        h0[r] += sign_hi * s0;
+                        h1[r] += sign_hi * s1;
+                    }
+                }
+            }
+        },
+    );
 }
 
 /// `J += G_eᵀ W_e⁻¹ G_e` for edge `(i, j)` in node-relative coordinates.
@@ -482,5 +539,51 @@ impl Estimator for Crkf {
             }
         }
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fused_edge_vector_has_the_bits_of_the_general_path() {
+        // W⁻¹ with and without zero entries, edges at agent 0 (no rows) and between others in
+        // both orders, means with zeros of both signs; every run count's tail.
+        let inverses = [
+            [2.5, -0.75, -0.75, 2.5],
+            [4.0, 0.0, 0.0, 4.0],
+            [0.0, 1.5, -2.0, 0.0],
+        ];
+        for w in inverses {
+            for edge in [(0, 2), (3, 0), (1, 4), (4, 1), (0, 0)] {
+                for runs in [1, 3, 5, 16, 50] {
+                    let y: Vec<f64> = (0..2 * runs)
+                        .map(|i| match i % 5 {
+                            0 => 0.0,
+                            1 => -0.0,
+                            k => (i as f64 * 0.37 - 1.1) * k as f64,
+                        })
+                        .collect();
+                    let b0: Vec<f64> = (0..4 * 2 * runs).map(|i| (i as f64 * 0.11).sin()).collect();
+                    let mut fused = b0.clone();
+                    add_edge_vector2(&w, &y, &mut fused, edge, runs);
+                    // The general path of `information_vector`.
+                    let mut general = b0.clone();
+                    let mut s = vec![0.0; 2 * runs];
+                    batch_gemv_acc(&w, 2, &y, &mut s, runs);
+                    for (node, sign) in [(edge.0, 1.0), (edge.1, -1.0)] {
+                        if node > 0 {
+                            let rows = &mut general[(node - 1) * 2 * runs..node * 2 * runs];
+                            for (bv, sv) in rows.iter_mut().zip(&s) {
+                                *bv += sign * sv;
+                            }
+                        }
+                    }
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&fused), bits(&general), "{w:?} {edge:?} {runs} runs");
+                }
+            }
+        }
     }
 }
