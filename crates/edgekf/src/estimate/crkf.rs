@@ -392,56 +392,48 @@ impl Crkf {
 /// nothing because a sum `0 + a` is never `−0` — so the bits are the general path's.
 #[inline]
 fn add_edge_vector2(w: &[f64], y: &[f64], b: &mut [f64], (i, j): (usize, usize), runs: usize) {
-    let [k0, k1, k2, k3]: [f64; 4] = w.try_into().expect("a 2 × 2 matrix");
+    let k: [f64; 4] = w.try_into().expect("a 2 × 2 matrix");
     let (y0, y1) = y[..2 * runs].split_at(runs);
     let block = 2 * runs;
-    // Agent 0's rows are not in ζ: a scratch row pair stands in for them.
     let (lo, hi) = (i.min(j), i.max(j));
     if hi == 0 {
         return;
     }
-    let (head, tail) = b.split_at_mut((hi - 1) * block);
-    let rows_hi = &mut tail[..block];
-    let rows_lo = if lo > 0 {
-        Some(&mut head[(lo - 1) * block..lo * block])
-    } else {
-        None
-    };
-    // b_i gains the product, b_j loses it.
+    // b_i gains the product, b_j loses it; agent 0 has no rows (ζ_0 = 0).
     let (sign_lo, sign_hi) = if i < j { (1.0, -1.0) } else { (-1.0, 1.0) };
+    let (head, tail) = b.split_at_mut((hi - 1) * block);
+    let (h0, h1) = tail[..block].split_at_mut(runs);
     crate::linalg::with_avx2(
         #[inline(always)]
         || {
-            let (h0, h1) = rows_hi.split_at_mut(runs);
-            match rows_lo {
-                Some(rows_lo) => {
-                    let (l0, l1) = rows_lo.split_at_mut(runs);
-                    for r in 0..runs {
-                        let (v0, v1) = (y0[r], y1[r]);
-                        let s0 = (0.0 + if k0 != 0.0 { k0 * v0 } else { 0.0 })
-                            + if k1 != 0.0 { k1 * v1 } else { 0.0 };
-                        let s1 = (0.0 + if k2 != 0.0 { k2 * v0 } else { 0.0 })
-                            + if k3 != 0.0 { k3 * v1 } else { 0.0 };
-                        l0[r] += sign_lo * s0;
-                        l1[r] += sign_lo * s1;
-                        h0[r] += sign_hi * s0;
-                        h1[r] += sign_hi * s1;
-                    }
+            if lo == 0 {
+                for r in 0..runs {
+                    let (s0, s1) = product2(k, y0[r], y1[r]);
+                    h0[r] += sign_hi * s0;
+                    h1[r] += sign_hi * s1;
                 }
-                None => {
-                    for r in 0..runs {
-                        let (v0, v1) = (y0[r], y1[r]);
-                        let s0 = (0.0 + if k0 != 0.0 { k0 * v0 } else { 0.0 })
-                            + if k1 != 0.0 { k1 * v1 } else { 0.0 };
-                        let s1 = (0.0 + if k2 != 0.0 { k2 * v0 } else { 0.0 })
-                            + if k3 != 0.0 { k3 * v1 } else { 0.0 };
-                        h0[r] += sign_hi * s0;
-                        h1[r] += sign_hi * s1;
-                    }
-                }
+                return;
+            }
+            let (l0, l1) = head[(lo - 1) * block..lo * block].split_at_mut(runs);
+            for r in 0..runs {
+                let (s0, s1) = product2(k, y0[r], y1[r]);
+                l0[r] += sign_lo * s0;
+                l1[r] += sign_lo * s1;
+                h0[r] += sign_hi * s0;
+                h1[r] += sign_hi * s1;
             }
         },
     );
+}
+
+/// `W⁻¹ v` as `batch_gemv_acc` sums it from zero (a zero entry's term is `+0`: see above).
+#[inline(always)]
+fn product2([k0, k1, k2, k3]: [f64; 4], v0: f64, v1: f64) -> (f64, f64) {
+    let term = |kc: f64, v: f64| if kc != 0.0 { kc * v } else { 0.0 };
+    (
+        (0.0 + term(k0, v0)) + term(k1, v1),
+        (0.0 + term(k2, v0)) + term(k3, v1),
+    )
 }
 
 /// `J += G_eᵀ W_e⁻¹ G_e` for edge `(i, j)` in node-relative coordinates.
