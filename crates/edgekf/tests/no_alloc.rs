@@ -78,12 +78,7 @@ fn a_large_run_on_two_threads_allocates_nothing_per_step() {
         let sc = trilateration_kernel(160, steps, steps / 2, names(&["jrkf", "rkf"]));
         allocations(&pool, &sc)
     };
-    let short = count(40);
-    let long = count(400);
-    assert_eq!(
-        short, long,
-        "allocations: {short} for 40 steps, {long} for 400 steps"
-    );
+    same_allocations("large run", (40, 400), count);
 }
 
 fn allocations_do_not_grow_with_steps() {
@@ -103,12 +98,7 @@ fn allocations_do_not_grow_with_steps() {
         let sc = hexagon(0.001, 0.1, steps, 3, steps / 2, estimators.clone());
         allocations(&pool, &sc)
     };
-    let short = count(200);
-    let long = count(4000);
-    assert_eq!(
-        short, long,
-        "allocations: {short} for 200 steps, {long} for 4000 steps"
-    );
+    same_allocations("every estimator", (200, 4000), count);
 }
 
 fn ca_filters_allocate_nothing_per_step() {
@@ -156,12 +146,7 @@ fn ca_filters_allocate_nothing_per_step_with(pool: &rayon::ThreadPool, faults: &
     let count = |steps: usize| allocations(pool, &ca_scenario(steps, "", &tail));
     // A first run initialises a process-wide cache once (one allocation); not counted.
     count(200);
-    let short = count(200);
-    let long = count(2000);
-    assert_eq!(
-        short, long,
-        "{faults}: allocations: {short} for 200 steps, {long} for 2000 steps"
-    );
+    same_allocations(faults, (200, 2000), count);
 }
 
 /// A sweep over the share of departing agents steps its values together until the departures
@@ -191,10 +176,15 @@ values = [0.0, 0.25]"#;
         })
     };
     count(200);
-    let short = count(200);
-    let long = count(2000);
+    same_allocations("forked sweep", (200, 2000), count);
+}
+
+/// Asserts that a study of `short` steps allocates as often as one of `long` steps (`count`
+/// runs one of the given length and returns its allocations): nothing per step.
+fn same_allocations(what: &str, (short, long): (usize, usize), count: impl Fn(usize) -> usize) {
+    let (a, b) = (count(short), count(long));
     assert_eq!(
-        short, long,
-        "forked sweep: allocations: {short} for 200 steps, {long} for 2000 steps"
+        a, b,
+        "{what}: allocations: {a} for {short} steps, {b} for {long} steps"
     );
 }
