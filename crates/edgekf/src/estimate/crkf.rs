@@ -374,13 +374,18 @@ impl Crkf {
                     }
                 }
             }
-            for (node, sign) in [(i, 1.0), (j, -1.0)] {
-                if node > 0 {
-                    let rows = &mut self.b[(node - 1) * d * r..node * d * r];
-                    for (bv, sv) in rows.iter_mut().zip(&self.s) {
-                        *bv += sign * sv;
-                    }
-                }
+            add_to_agents(&mut self.b, &self.s, (i, j), d * r);
+        }
+    }
+}
+
+/// `b_i += s`, `b_j −= s` (`s`: one edge's vector, `block` = D·runs values; agent 0 has no rows).
+fn add_to_agents(b: &mut [f64], s: &[f64], (i, j): (usize, usize), block: usize) {
+    for (node, sign) in [(i, 1.0), (j, -1.0)] {
+        if node > 0 {
+            let rows = &mut b[(node - 1) * block..node * block];
+            for (bv, sv) in rows.iter_mut().zip(s) {
+                *bv += sign * sv;
             }
         }
     }
@@ -564,14 +569,7 @@ mod tests {
                     let mut general = b0.clone();
                     let mut s = vec![0.0; 2 * runs];
                     batch_gemv_acc(&w, 2, &y, &mut s, runs);
-                    for (node, sign) in [(edge.0, 1.0), (edge.1, -1.0)] {
-                        if node > 0 {
-                            let rows = &mut general[(node - 1) * 2 * runs..node * 2 * runs];
-                            for (bv, sv) in rows.iter_mut().zip(&s) {
-                                *bv += sign * sv;
-                            }
-                        }
-                    }
+                    add_to_agents(&mut general, &s, edge, 2 * runs);
                     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     assert_eq!(bits(&fused), bits(&general), "{w:?} {edge:?} {runs} runs");
                 }
