@@ -335,20 +335,10 @@ impl Crkf {
 
     /// `x̂_e = ζ̂_i − ζ̂_j` with `ζ̂_0 = 0`.
     fn edge_estimates(&mut self) {
-        let (r, d) = (self.runs, self.dim);
+        let block = self.runs * self.dim;
+        let node = |n: usize| (n > 0).then(|| &self.zeta[(n - 1) * block..n * block]);
         for (e, &(i, j)) in self.edges.iter().enumerate() {
-            let xe = &mut self.x[e * d * r..(e + 1) * d * r];
-            xe.fill(0.0);
-            if i > 0 {
-                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(i - 1) * d * r..i * d * r]) {
-                    *xv += zv;
-                }
-            }
-            if j > 0 {
-                for (xv, zv) in xe.iter_mut().zip(&self.zeta[(j - 1) * d * r..j * d * r]) {
-                    *xv -= zv;
-                }
-            }
+            edge_estimate_row(&mut self.x[e * block..(e + 1) * block], node(i), node(j));
         }
     }
 
@@ -408,27 +398,139 @@ fn add_edge_vector2(w: &[f64], y: &[f64], b: &mut [f64], (i, j): (usize, usize),
     let (sign_lo, sign_hi) = if i < j { (1.0, -1.0) } else { (-1.0, 1.0) };
     let (head, tail) = b.split_at_mut((hi - 1) * block);
     let (h0, h1) = tail[..block].split_at_mut(runs);
-    crate::linalg::with_avx2(
-        #[inline(always)]
-        || {
-            if lo == 0 {
-                for r in 0..runs {
-                    let (s0, s1) = product2(k, y0[r], y1[r]);
-                    h0[r] += sign_hi * s0;
-                    h1[r] += sign_hi * s1;
-                }
-                return;
+    let mut lo_rows = (lo > 0).then(|| head[(lo - 1) * block..lo * block].split_at_mut(runs));
+    let mut from = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        let lo_rows = lo_rows
+            .as_mut()
+            .map(|(l0, l1)| (&mut **l0, &mut **l1, sign_lo));
+        // SAFETY: the CPU has AVX2 (checked just above).
+        from = unsafe { edge_vector2_avx2(k, (y0, y1), lo_rows, (h0, h1, sign_hi)) };
+    }
+    for r in from..runs {
+        let (s0, s1) = product2(k, y0[r], y1[r]);
+        if let Some((l0, l1)) = lo_rows.as_mut() {
+            l0[r] += sign_lo * s0;
+            l1[r] += sign_lo * s1;
+        }
+        h0[r] += sign_hi * s0;
+        h1[r] += sign_hi * s1;
+    }
+}
+
+/// [`add_edge_vector2`]'s loop over the runs, four at a time in AVX2 registers, up to the last
+/// multiple of four (returned): the same operations in the same order — a zero entry's term is
+/// `+0` (the product masked), no fused multiply–add — so the same bits, without the set-up the
+/// compiler generates for each edge's loop. `lo` is the lower agent's rows and sign (none for
+/// agent 0), `hi` the higher agent's.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn edge_vector2_avx2(
+    k: [f64; 4],
+    (y0, y1): (&[f64], &[f64]),
+    lo: Option<(&mut [f64], &mut [f64], f64)>,
+    (h0, h1, sign_hi): (&mut [f64], &mut [f64], f64),
+) -> usize {
+    use std::arch::x86_64::*;
+    let runs = y0.len();
+    assert!(y1.len() == runs && h0.len() == runs && h1.len() == runs);
+    let full = runs - runs % 4;
+    let kv = k.map(|c| _mm256_set1_pd(c));
+    let mask = k.map(|c| _mm256_castsi256_pd(_mm256_set1_epi64x(if c != 0.0 { -1 } else { 0 })));
+    let term = |c: usize, v: __m256d| _mm256_and_pd(_mm256_mul_pd(kv[c], v), mask[c]);
+    let zero = _mm256_setzero_pd();
+    let shi = _mm256_set1_pd(sign_hi);
+    let (py0, py1, ph0, ph1) = (y0.as_ptr(), y1.as_ptr(), h0.as_mut_ptr(), h1.as_mut_ptr());
+    let lo = lo.map(|(l0, l1, s)| {
+        assert!(l0.len() == runs && l1.len() == runs);
+        (l0.as_mut_ptr(), l1.as_mut_ptr(), _mm256_set1_pd(s))
+    });
+    let mut r = 0;
+    while r < full {
+        // SAFETY: r + 4 ≤ runs, within every row (their lengths asserted above).
+        unsafe {
+            let (v0, v1) = (_mm256_loadu_pd(py0.add(r)), _mm256_loadu_pd(py1.add(r)));
+            let s0 = _mm256_add_pd(_mm256_add_pd(zero, term(0, v0)), term(1, v1));
+            let s1 = _mm256_add_pd(_mm256_add_pd(zero, term(2, v0)), term(3, v1));
+            let acc = |p: *mut f64, sign: __m256d, s: __m256d| {
+                _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), _mm256_mul_pd(sign, s)));
+            };
+            if let Some((l0, l1, slo)) = lo {
+                acc(l0.add(r), slo, s0);
+                acc(l1.add(r), slo, s1);
             }
-            let (l0, l1) = head[(lo - 1) * block..lo * block].split_at_mut(runs);
-            for r in 0..runs {
-                let (s0, s1) = product2(k, y0[r], y1[r]);
-                l0[r] += sign_lo * s0;
-                l1[r] += sign_lo * s1;
-                h0[r] += sign_hi * s0;
-                h1[r] += sign_hi * s1;
-            }
-        },
+            acc(ph0.add(r), shi, s0);
+            acc(ph1.add(r), shi, s1);
+        }
+        r += 4;
+    }
+    full
+}
+
+/// One edge's estimates `x` from its agents' rows of `ζ̂` (agent 0 has none: `None`), in one pass.
+fn edge_estimate_row(x: &mut [f64], zi: Option<&[f64]>, zj: Option<&[f64]>) {
+    let mut from = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        from = unsafe { edge_estimate_avx2(x, zi, zj) };
+    }
+    for (k, xv) in x.iter_mut().enumerate().skip(from) {
+        *xv = edge_estimate(zi.map(|z| z[k]), zj.map(|z| z[k]));
+    }
+}
+
+/// One value of `x̂_ij = ζ̂_i − ζ̂_j` as `(0 + ζ̂_i) − ζ̂_j` (agent 0's `ζ̂ = 0` has no row: `None`).
+#[inline(always)]
+fn edge_estimate(zi: Option<f64>, zj: Option<f64>) -> f64 {
+    let mut x = 0.0;
+    if let Some(v) = zi {
+        x += v;
+    }
+    if let Some(v) = zj {
+        x -= v;
+    }
+    x
+}
+
+/// [`edge_estimate`] for four values at a time in AVX2 registers, up to the last multiple of
+/// four of `x.len()` (returned): the same operations, so the same bits, in one pass instead
+/// of three.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn edge_estimate_avx2(x: &mut [f64], zi: Option<&[f64]>, zj: Option<&[f64]>) -> usize {
+    use std::arch::x86_64::*;
+    let n = x.len();
+    assert!(zi.is_none_or(|z| z.len() == n) && zj.is_none_or(|z| z.len() == n));
+    let full = n - n % 4;
+    let (pi, pj, px) = (
+        zi.map(<[f64]>::as_ptr),
+        zj.map(<[f64]>::as_ptr),
+        x.as_mut_ptr(),
     );
+    let mut k = 0;
+    while k < full {
+        // SAFETY: k + 4 ≤ n, within every slice (their lengths asserted above).
+        unsafe {
+            let mut v = _mm256_setzero_pd();
+            if let Some(p) = pi {
+                v = _mm256_add_pd(v, _mm256_loadu_pd(p.add(k)));
+            }
+            if let Some(p) = pj {
+                v = _mm256_sub_pd(v, _mm256_loadu_pd(p.add(k)));
+            }
+            _mm256_storeu_pd(px.add(k), v);
+        }
+        k += 4;
+    }
+    full
 }
 
 /// `W⁻¹ v` as `batch_gemv_acc` sums it from zero (a zero entry's term is `+0`: see above).
@@ -544,9 +646,33 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_edge_estimates_have_the_bits_of_three_passes() {
+        let mixed = crate::step::tests::mixed;
+        let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        for n in 1..20 {
+            let (a, b) = (mixed(n, 7), mixed(n, 8));
+            for (zi, zj) in [(Some(&a), Some(&b)), (None, Some(&b)), (Some(&a), None)] {
+                // What `edge_estimates` did before it was one pass: fill, add, subtract.
+                let mut want = vec![0.0; n];
+                if let Some(z) = zi {
+                    want.iter_mut().zip(z).for_each(|(x, v)| *x += v);
+                }
+                if let Some(z) = zj {
+                    want.iter_mut().zip(z).for_each(|(x, v)| *x -= v);
+                }
+                let (zi, zj) = (zi.map(Vec::as_slice), zj.map(Vec::as_slice));
+                let mut got = vec![f64::NAN; n];
+                edge_estimate_row(&mut got, zi, zj);
+                assert_eq!(bits(&got), bits(&want), "{n} values");
+            }
+        }
+    }
+
+    #[test]
     fn the_fused_edge_vector_has_the_bits_of_the_general_path() {
         // W⁻¹ with and without zero entries, edges at agent 0 (no rows) and between others in
-        // both orders, means with zeros of both signs; every run count's tail.
+        // both orders, means with zeros of both signs and infinities (a zero entry's term is
+        // skipped, not `0 · ∞`); every run count's tail.
         let inverses = [
             [2.5, -0.75, -0.75, 2.5],
             [4.0, 0.0, 0.0, 4.0],
@@ -556,9 +682,10 @@ mod tests {
             for edge in [(0, 2), (3, 0), (1, 4), (4, 1), (0, 0)] {
                 for runs in [1, 3, 5, 16, 50] {
                     let y: Vec<f64> = (0..2 * runs)
-                        .map(|i| match i % 5 {
+                        .map(|i| match i % 7 {
                             0 => 0.0,
                             1 => -0.0,
+                            6 => f64::INFINITY,
                             k => (i as f64 * 0.37 - 1.1) * k as f64,
                         })
                         .collect();
