@@ -483,16 +483,26 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// The bit patterns of `v`, to compare values bit for bit (`−0` against `+0` included).
+    pub(crate) fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|f| f.to_bits()).collect()
+    }
+
     /// The AVX2 means (four runs at a time, then the last ones) have the bits of the loop over
     /// the runs, for every count of runs from 1 to 19 (each tail, several full vectors).
     #[test]
     fn the_vector_means_have_the_bits_of_the_loop() {
-        let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
         for runs in 1..20 {
             let (zi, zj, eta) = (mixed(2 * runs, 1), mixed(2 * runs, 2), mixed(2 * runs, 3));
             for c in [[0.3, 0.0, -0.7, 1.9], [1.1, 0.2, 0.2, 1.1]] {
+                // The loop `form_edge_means` ran before it had a vector path.
+                let (h0, h1) = eta.split_at(runs);
                 let mut want = vec![f64::NAN; 2 * runs];
-                means2_runs(&c, (&zi, &zj), &eta, &mut want, 0..runs);
+                let (y0, y1) = want.split_at_mut(runs);
+                for r in 0..runs {
+                    y0[r] = (zi[r] - zj[r]) + (c[0] * h0[r] + c[1] * h1[r]);
+                    y1[r] = (zi[runs + r] - zj[runs + r]) + (c[2] * h0[r] + c[3] * h1[r]);
+                }
                 let mut got = vec![f64::NAN; 2 * runs];
                 let factor = MeasNoise::Factor {
                     factor: &c,

@@ -399,6 +399,7 @@ fn add_edge_vector2(w: &[f64], y: &[f64], b: &mut [f64], (i, j): (usize, usize),
     let (head, tail) = b.split_at_mut((hi - 1) * block);
     let (h0, h1) = tail[..block].split_at_mut(runs);
     let mut lo_rows = (lo > 0).then(|| head[(lo - 1) * block..lo * block].split_at_mut(runs));
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
     let mut from = 0;
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
@@ -473,6 +474,7 @@ unsafe fn edge_vector2_avx2(
 
 /// One edge's estimates `x` from its agents' rows of `ζ̂` (agent 0 has none: `None`), in one pass.
 fn edge_estimate_row(x: &mut [f64], zi: Option<&[f64]>, zj: Option<&[f64]>) {
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
     let mut from = 0;
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
@@ -647,8 +649,7 @@ mod tests {
 
     #[test]
     fn the_edge_estimates_have_the_bits_of_three_passes() {
-        let mixed = crate::step::tests::mixed;
-        let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        use crate::step::tests::{bits, mixed};
         for n in 1..20 {
             let (a, b) = (mixed(n, 7), mixed(n, 8));
             for (zi, zj) in [(Some(&a), Some(&b)), (None, Some(&b)), (Some(&a), None)] {
@@ -671,8 +672,11 @@ mod tests {
     #[test]
     fn the_fused_edge_vector_has_the_bits_of_the_general_path() {
         // W⁻¹ with and without zero entries, edges at agent 0 (no rows) and between others in
-        // both orders, means with zeros of both signs and infinities (a zero entry's term is
-        // skipped, not `0 · ∞`); every run count's tail.
+        // both orders; means with zeros of both signs, pairs whose two terms are both `−0` (the
+        // sum from `+0` is then `+0`, which an agent's row at `−0` shows) and infinities (a zero
+        // entry's term is skipped, not `0 · ∞`); agents' rows random or all `−0` (as `−J ζ̂` has
+        // them); every run count from 1 to 19, and 50.
+        use crate::step::tests::{bits, mixed};
         let inverses = [
             [2.5, -0.75, -0.75, 2.5],
             [4.0, 0.0, 0.0, 4.0],
@@ -680,25 +684,26 @@ mod tests {
         ];
         for w in inverses {
             for edge in [(0, 2), (3, 0), (1, 4), (4, 1), (0, 0)] {
-                for runs in [1, 3, 5, 16, 50] {
-                    let y: Vec<f64> = (0..2 * runs)
-                        .map(|i| match i % 7 {
-                            0 => 0.0,
-                            1 => -0.0,
-                            6 => f64::INFINITY,
-                            k => (i as f64 * 0.37 - 1.1) * k as f64,
-                        })
-                        .collect();
-                    let b0: Vec<f64> = (0..4 * 2 * runs).map(|i| (i as f64 * 0.11).sin()).collect();
-                    let mut fused = b0.clone();
-                    add_edge_vector2(&w, &y, &mut fused, edge, runs);
-                    // The general path of `information_vector`.
-                    let mut general = b0.clone();
-                    let mut s = vec![0.0; 2 * runs];
-                    batch_gemv_acc(&w, 2, &y, &mut s, runs);
-                    add_to_agents(&mut general, &s, edge, 2 * runs);
-                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                    assert_eq!(bits(&fused), bits(&general), "{w:?} {edge:?} {runs} runs");
+                for runs in (1..20).chain([50]) {
+                    let mut y = mixed(2 * runs, 9);
+                    for r in 0..runs {
+                        if r % 5 == 0 {
+                            (y[r], y[runs + r]) = (-0.0, 0.0);
+                        }
+                        if r % 7 == 3 {
+                            y[r] = f64::INFINITY;
+                        }
+                    }
+                    for b0 in [mixed(4 * 2 * runs, 10), vec![-0.0; 4 * 2 * runs]] {
+                        let mut fused = b0.clone();
+                        add_edge_vector2(&w, &y, &mut fused, edge, runs);
+                        // The general path of `information_vector`.
+                        let mut general = b0.clone();
+                        let mut s = vec![0.0; 2 * runs];
+                        batch_gemv_acc(&w, 2, &y, &mut s, runs);
+                        add_to_agents(&mut general, &s, edge, 2 * runs);
+                        assert_eq!(bits(&fused), bits(&general), "{w:?} {edge:?} {runs} runs");
+                    }
                 }
             }
         }

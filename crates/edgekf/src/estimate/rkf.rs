@@ -789,6 +789,7 @@ fn means2(
                 let (y0, y1) = y.split_at(r);
                 let (d0, d1) = du[e * 2 * r..(e + 1) * 2 * r].split_at(r);
                 if k.iter().all(|&v| v != 0.0) {
+                    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
                     let mut from = 0;
                     #[cfg(target_arch = "x86_64")]
                     if std::arch::is_x86_feature_detected!("avx2") {
@@ -886,8 +887,7 @@ mod tests {
     /// runs, for every count of runs from 1 to 19 (means with zeros of both signs).
     #[test]
     fn the_vector_update_has_the_bits_of_the_loop() {
-        let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
-        let mixed = crate::step::tests::mixed;
+        use crate::step::tests::{bits, mixed};
         let k = [0.61, -0.13, 0.27, 0.58];
         for r in 1..20 {
             let (x, y, du) = (mixed(2 * r, 4), mixed(2 * r, 5), mixed(2 * r, 6));
