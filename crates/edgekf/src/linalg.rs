@@ -343,6 +343,23 @@ impl Size for usize {
     }
 }
 
+/// How many leading values `$kernel` — an AVX2 kernel (`#[target_feature(enable = "avx2")]`)
+/// that returns how many it computed — computed when the CPU has AVX2, else 0: the caller's
+/// portable loop does the rest from there, so the kernel may stop at the last full vector.
+macro_rules! avx2_prefix {
+    ($kernel:expr) => {{
+        #[allow(unused_mut)]
+        let mut done = 0usize;
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above), all that the kernels ask.
+            done = unsafe { $kernel };
+        }
+        done
+    }};
+}
+pub(crate) use avx2_prefix;
+
 /// Runs `f` compiled for AVX2 when the CPU has it: `f`, an `#[inline(always)]` closure, is
 /// inlined into an AVX2 function, so its loops over the runs vectorise 4 wide (no fused
 /// multiply–add: the bits are those of the portable code).

@@ -356,13 +356,8 @@ pub(crate) fn form_edge_means(
             let c: &[f64; 4] = factor[e * 4..e * 4 + 4].try_into().expect("a 2 × 2 factor");
             let eta = &eta[re..re + 2 * runs];
             let y = &mut y[..2 * runs];
-            #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                unsafe { means2_avx2(c, (zi, zj), eta, y, runs) };
-                return;
-            }
-            means2_runs(c, (zi, zj), eta, y, 0..runs);
+            let from = crate::linalg::avx2_prefix!(means2_avx2(c, (zi, zj), eta, y, runs));
+            means2_runs(c, (zi, zj), eta, y, from..runs);
         }
         MeasNoise::Factor { .. } => unreachable!("the factor form is D = 2 only"),
         MeasNoise::Mean(vbar) => {
@@ -394,9 +389,10 @@ fn means2_runs(
     }
 }
 
-/// [`means2_runs`] for every run, four at a time in AVX2 registers: the same operations in the
-/// same order, so the same bits (no fused multiply–add), without the loop set-up the compiler
-/// generates per edge (tests of whether the rows overlap, a scalar loop for the last runs).
+/// [`means2_runs`] four runs at a time in AVX2 registers, up to the last multiple of four
+/// (returned): the same operations in the same order, so the same bits (no fused
+/// multiply–add), without the loop set-up the compiler generates per edge (tests of whether the
+/// rows overlap, a scalar loop for the last runs).
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -409,7 +405,7 @@ unsafe fn means2_avx2(
     eta: &[f64],
     y: &mut [f64],
     runs: usize,
-) {
+) -> usize {
     use std::arch::x86_64::*;
     assert!(zi.len() >= 2 * runs && zj.len() >= 2 * runs);
     assert!(eta.len() == 2 * runs && y.len() == 2 * runs);
@@ -432,7 +428,7 @@ unsafe fn means2_avx2(
         }
         r += 4;
     }
-    means2_runs(c, (zi, zj), eta, y, full..runs);
+    full
 }
 
 /// Everything an estimator may read at step `k`: the outputs of the stages that run before

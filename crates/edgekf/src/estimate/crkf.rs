@@ -399,16 +399,12 @@ fn add_edge_vector2(w: &[f64], y: &[f64], b: &mut [f64], (i, j): (usize, usize),
     let (head, tail) = b.split_at_mut((hi - 1) * block);
     let (h0, h1) = tail[..block].split_at_mut(runs);
     let mut lo_rows = (lo > 0).then(|| head[(lo - 1) * block..lo * block].split_at_mut(runs));
-    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
-    let mut from = 0;
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        let lo_rows = lo_rows
+    let from = crate::linalg::avx2_prefix!({
+        let lo = lo_rows
             .as_mut()
             .map(|(l0, l1)| (&mut **l0, &mut **l1, sign_lo));
-        // SAFETY: the CPU has AVX2 (checked just above).
-        from = unsafe { edge_vector2_avx2(k, (y0, y1), lo_rows, (h0, h1, sign_hi)) };
-    }
+        edge_vector2_avx2(k, (y0, y1), lo, (h0, h1, sign_hi))
+    });
     for r in from..runs {
         let (s0, s1) = product2(k, y0[r], y1[r]);
         if let Some((l0, l1)) = lo_rows.as_mut() {
@@ -474,13 +470,7 @@ unsafe fn edge_vector2_avx2(
 
 /// One edge's estimates `x` from its agents' rows of `ζ̂` (agent 0 has none: `None`), in one pass.
 fn edge_estimate_row(x: &mut [f64], zi: Option<&[f64]>, zj: Option<&[f64]>) {
-    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
-    let mut from = 0;
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (checked just above).
-        from = unsafe { edge_estimate_avx2(x, zi, zj) };
-    }
+    let from = crate::linalg::avx2_prefix!(edge_estimate_avx2(x, zi, zj));
     for (k, xv) in x.iter_mut().enumerate().skip(from) {
         *xv = edge_estimate(zi.map(|z| z[k]), zj.map(|z| z[k]));
     }

@@ -789,14 +789,10 @@ fn means2(
                 let (y0, y1) = y.split_at(r);
                 let (d0, d1) = du[e * 2 * r..(e + 1) * 2 * r].split_at(r);
                 if k.iter().all(|&v| v != 0.0) {
-                    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
-                    let mut from = 0;
-                    #[cfg(target_arch = "x86_64")]
-                    if std::arch::is_x86_feature_detected!("avx2") {
+                    let from = crate::linalg::avx2_prefix!({
                         let k: &[f64; 4] = k.try_into().expect("a 2 × 2 gain");
-                        // SAFETY: the CPU has AVX2 (checked just above).
-                        from = unsafe { update2_avx2(k, (x0, x1), (y0, y1), (d0, d1)) };
-                    }
+                        update2_avx2(k, (x0, x1), (y0, y1), (d0, d1))
+                    });
                     for run in from..r {
                         let (a, b) = (x0[run] + d0[run], x1[run] + d1[run]);
                         let (v0, v1) = (y0[run] - a, y1[run] - b);
