@@ -28,8 +28,9 @@ pub struct ClaimsArgs {
     /// Print a JSON array with the keys id, paper, where, claim, paper_value, value, se, verdict.
     #[arg(long)]
     pub json: bool,
-    /// Write DIR/claims.json and DIR/claims.md (every claim checked) and
-    /// DIR/<simulation>/claims.json (the claims of each simulation, beside `reproduce --out DIR`).
+    /// Write DIR/claims.json and DIR/claims.md (every claim checked) and, into each simulation's
+    /// directory that `reproduce --out DIR` wrote, DIR/<simulation>/claims.json (for its report
+    /// page). DIR must not be a study's own directory.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Worker threads (default: all cores). Results do not depend on it.
@@ -82,6 +83,11 @@ pub fn run(args: &ClaimsArgs) -> Result<()> {
         seeds: args.seeds,
         ..Options::default()
     };
+    // Where the files go is checked before the simulations run, not after.
+    let beside = match &args.out {
+        Some(dir) => study_dirs(dir, &claims)?,
+        None => BTreeMap::new(),
+    };
     let studies = edgekf_claims::needed_studies(&claims)?;
     let total: u64 = studies.iter().map(|s| s.work(opt.size, opt.seeds)).sum();
     let pool = crate::pool(args.threads)?;
@@ -105,10 +111,66 @@ pub fn run(args: &ClaimsArgs) -> Result<()> {
         print!("{}", table(&outcomes));
     }
     if let Some(dir) = &args.out {
-        write_out(dir, &outcomes)?;
+        write_out(dir, &outcomes, &beside)?;
         eprintln!("wrote {}", dir.join("claims.json").display());
     }
     Ok(())
+}
+
+/// The simulations of `claims` whose directory in `dir` holds that simulation's study (as
+/// `reproduce --out DIR` writes it): whether each gets its `claims.json`. Refused: `dir` itself
+/// a study's directory, or a simulation's directory holding something else — the claims of one
+/// study must not land among another's files. A simulation without a directory gets none (a
+/// directory holding only `claims.json` would then be refused by `reproduce`), which is said.
+fn study_dirs(dir: &Path, claims: &[edgekf_claims::Claim]) -> Result<BTreeMap<&'static str, bool>> {
+    use edgekf_io::outdir::provenance;
+    if let Some(p) = provenance(dir) {
+        anyhow::bail!(
+            "{}: holds the {} `{}`, not the output of `edgekf reproduce`; `claims --out` writes \
+             claims.json and claims.md there and each simulation's claims.json into its \
+             directory: give the directory `reproduce --out` wrote, or a new one",
+            dir.display(),
+            p.kind,
+            p.name
+        );
+    }
+    let mut beside = BTreeMap::new();
+    for c in claims {
+        let sim = edgekf_claims::simulation_of(c);
+        let sub = dir.join(sim);
+        let ours = match provenance(&sub) {
+            Some(p) if p.name == sim && (p.kind == "study" || p.kind == "slam") => true,
+            Some(p) => anyhow::bail!(
+                "{}: holds the {} `{}`, not the simulation `{sim}` whose claims.json would go \
+                 there; give the directory `reproduce --out` wrote, or a new one",
+                sub.display(),
+                p.kind,
+                p.name
+            ),
+            None if sub.exists() => anyhow::bail!(
+                "{}: is not a directory `edgekf reproduce` wrote (no provenance.json); \
+                 give the directory `reproduce --out` wrote, or a new one",
+                sub.display()
+            ),
+            None => false,
+        };
+        beside.insert(sim, ours);
+    }
+    let missing: Vec<&str> = beside
+        .iter()
+        .filter(|(_, &b)| !b)
+        .map(|(s, _)| *s)
+        .collect();
+    if !missing.is_empty() {
+        eprintln!(
+            "note: {} has no directory of {} (`edgekf reproduce … --out {}` writes them): their \
+             claims go to claims.json and claims.md only",
+            dir.display(),
+            missing.join(", "),
+            dir.display()
+        );
+    }
+    Ok(beside)
 }
 
 fn json(outcomes: &[Outcome]) -> Result<String> {
@@ -116,7 +178,7 @@ fn json(outcomes: &[Outcome]) -> Result<String> {
     serde_json::to_string_pretty(&records).context("cannot serialise the claims")
 }
 
-fn write_out(dir: &Path, outcomes: &[Outcome]) -> Result<()> {
+fn write_out(dir: &Path, outcomes: &[Outcome], beside: &BTreeMap<&str, bool>) -> Result<()> {
     let mut st = crate::interrupt::stage(dir)?;
     let mut text = json(outcomes)?;
     text.push('\n');
@@ -131,6 +193,9 @@ fn write_out(dir: &Path, outcomes: &[Outcome]) -> Result<()> {
             .push(o.clone());
     }
     for (sim, list) in by_sim {
+        if !beside.get(sim).copied().unwrap_or(false) {
+            continue;
+        }
         let mut st = crate::interrupt::stage(&dir.join(sim))?;
         let mut text = json(&list)?;
         text.push('\n');

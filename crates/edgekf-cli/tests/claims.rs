@@ -1,5 +1,6 @@
 //! `edgekf claims`: the JSON array has exactly the keys the report page reads, `--out` writes it
-//! for the whole run and per simulation directory, and a bad name fails cleanly. The claims of
+//! for the whole run and into each simulation directory `reproduce` wrote (never into another
+//! study's files), and a bad name fails cleanly. The claims of
 //! `slam-fig3` are deterministic and take a fraction of a second.
 
 use std::fs;
@@ -16,6 +17,8 @@ fn edgekf(args: &[&str]) -> std::process::Output {
 fn json_has_exactly_the_keys_and_out_writes_each_simulation() {
     let dir = std::env::temp_dir().join(format!("edgekf-cli-claims-{}", std::process::id()));
     let _ = fs::remove_dir_all(&dir);
+    let o = edgekf(&["reproduce", "slam-fig3", "--out", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = edgekf(&[
         "claims",
         "slam-fig3",
@@ -68,6 +71,53 @@ fn json_has_exactly_the_keys_and_out_writes_each_simulation() {
     let md = fs::read_to_string(dir.join("claims.md")).unwrap();
     assert!(md.contains("`guo-6-omega-positive`"));
     let _ = fs::remove_dir_all(&dir);
+}
+
+/// `claims --out` into a study's own directory is refused before anything runs, and nothing is
+/// written there; into a new directory it writes the whole run's files and no simulation
+/// directory (one holding only `claims.json` would be refused by a later `reproduce`).
+#[test]
+fn out_never_mixes_with_a_study() {
+    let base = std::env::temp_dir().join(format!("edgekf-cli-claims-mix-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&base);
+    let study = base.join("study");
+    let o = edgekf(&["reproduce", "slam-fig3", "--out", base.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    fs::rename(base.join("slam-fig3"), &study).unwrap();
+    let before: Vec<_> = fs::read_dir(&study)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    let o = edgekf(&["claims", "slam-fig3", "--out", study.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("holds the slam `slam-fig3`, not the output of `edgekf reproduce`"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("checking"),
+        "refused before the simulations: {err}"
+    );
+    let after: Vec<_> = fs::read_dir(&study)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(before, after);
+
+    let fresh = base.join("fresh");
+    let o = edgekf(&["claims", "slam-fig3", "--out", fresh.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("has no directory of slam-fig3"));
+    let mut names: Vec<_> = fs::read_dir(&fresh)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["claims.json", "claims.md"]);
+    let o = edgekf(&["reproduce", "slam-fig3", "--out", fresh.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = fs::remove_dir_all(&base);
 }
 
 #[test]
