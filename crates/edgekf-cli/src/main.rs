@@ -56,8 +56,9 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run one scenario file and write scenario.json, metrics.csv, paths.csv, status.csv and its
-    /// figures; print the steady-state summary.
+    /// Run one scenario file and write scenario.json, metrics.csv, paths.csv, status.csv,
+    /// frames.json (the report page's player), provenance.json and its figures; print the
+    /// steady-state summary.
     Run {
         /// Scenario file: TOML, or a resolved scenario.json.
         scenario: PathBuf,
@@ -249,6 +250,14 @@ impl Default for Overrides {
             max_hours: DEFAULT_MAX_HOURS,
             json: false,
         }
+    }
+}
+
+impl Overrides {
+    /// Whether a flag that sizes or seeds a filter study (`--runs`, `--steps`, `--seed`,
+    /// `--every`) is given: a SLAM study takes none of them.
+    fn sizes_filter(&self) -> bool {
+        self.runs.is_some() || self.steps.is_some() || self.seed.is_some() || self.every.is_some()
     }
 }
 
@@ -445,12 +454,7 @@ fn run_slam(
     force: bool,
     over: &Overrides,
 ) -> Result<ExitCode> {
-    if over.runs.is_some()
-        || over.steps.is_some()
-        || over.seed.is_some()
-        || over.every.is_some()
-        || shard
-    {
+    if over.sizes_filter() || shard {
         bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
     }
     let id = StudyId::new("slam", &slam::study_name(source, text)?);
@@ -553,6 +557,9 @@ fn fit_ar(
     label: Option<&str>,
     over: &Overrides,
 ) -> Result<()> {
+    if over.every.is_some() {
+        bail!("flag `--every`: fit-ar reports nothing per step (it fits the inputs of steps --from on); leave it out");
+    }
     let text =
         fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let source = path.display().to_string();
@@ -597,9 +604,20 @@ fn fit_ar(
     let p = Progress::new(total, "fit-ar");
     let res = pool.install(|| sim::run_with(&sc, &p, opt))?;
     p.0.finish_and_clear();
+    let fit = ArFit::of(&res.input_acov[e])?;
+    let label = sc.estimators()[e].label();
+    if over.json {
+        let v = serde_json::json!({
+            "estimator": label, "order": order, "from": from, "steps": sc.steps(),
+            "runs": sc.runs(), "agents": sc.framework().agents(), "seed": sc.seed(),
+            "source": source, "r0": fit.r0, "autocorrelation": fit.rho,
+            "coeffs": fit.coeffs, "noise_var": fit.noise_var,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
     println!(
-        "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{}`,",
-        sc.estimators()[e].label()
+        "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{label}`,"
     );
     println!(
         "# {} runs × {} agents, steps {from}..={} of {}, seed {}",
@@ -609,40 +627,71 @@ fn fit_ar(
         source,
         sc.seed()
     );
-    print_ar_fit(&res.input_acov[e], order)
+    fit.print_toml();
+    Ok(())
 }
 
-/// The Yule–Walker fit of each coordinate's input autocovariances `acov[d]` (lags 0..=order):
-/// the autocorrelations as comments, then the `[comm.ar]` table of a scenario file.
-fn print_ar_fit(acov: &[Vec<f64>], order: usize) -> Result<()> {
-    let mut coeffs = vec![vec![0.0; acov.len()]; order];
-    let mut noise = Vec::new();
-    for (d, r) in acov.iter().enumerate() {
-        let (a, v) = edgekf::estimate::ar::yule_walker(r).with_context(|| {
-            format!("coordinate {d}: the inputs are identically zero; nothing to fit")
-        })?;
-        let rho: Vec<String> = r.iter().map(|x| format!("{:.4}", x / r[0])).collect();
-        println!(
-            "# coordinate {d}: r(0) = {:.6e} (m/s)², autocorrelation [{}]",
-            r[0],
-            rho.join(", ")
-        );
-        for (l, c) in a.iter().enumerate() {
-            coeffs[l][d] = *c;
+/// The Yule–Walker fit of each coordinate's input autocovariances (lags 0..=order): what
+/// `fit-ar` prints, as the `[comm.ar]` table of a scenario file or as JSON.
+struct ArFit {
+    /// `r(0)` per coordinate, (m/s)².
+    r0: Vec<f64>,
+    /// The autocorrelations `r(l) / r(0)`, l = 0..=order, per coordinate.
+    rho: Vec<Vec<f64>>,
+    /// `coeffs[l][d]`: coordinate d's coefficient of lag l + 1 (the `[comm.ar]` key).
+    coeffs: Vec<Vec<f64>>,
+    /// The innovations' variance per coordinate (the `[comm.ar]` key).
+    noise_var: Vec<f64>,
+}
+
+impl ArFit {
+    /// The fit of `acov[d]`, each coordinate's autocovariances at lags 0..=order.
+    fn of(acov: &[Vec<f64>]) -> Result<Self> {
+        let order = acov.first().map_or(0, |r| r.len().saturating_sub(1));
+        let mut fit = ArFit {
+            r0: Vec::new(),
+            rho: Vec::new(),
+            coeffs: vec![vec![0.0; acov.len()]; order],
+            noise_var: Vec::new(),
+        };
+        for (d, r) in acov.iter().enumerate() {
+            let (a, v) = edgekf::estimate::ar::yule_walker(r).with_context(|| {
+                format!("coordinate {d}: the inputs are identically zero; nothing to fit")
+            })?;
+            fit.r0.push(r[0]);
+            fit.rho.push(r.iter().map(|x| x / r[0]).collect());
+            for (l, c) in a.iter().enumerate() {
+                fit.coeffs[l][d] = *c;
+            }
+            fit.noise_var.push(v);
         }
-        noise.push(v);
+        Ok(fit)
     }
-    let list = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let rows: Vec<String> = coeffs.iter().map(|c| format!("[{}]", list(c))).collect();
-    println!("[comm.ar]");
-    println!("coeffs = [{}]", rows.join(", "));
-    println!("noise_var = [{}]", list(&noise));
-    Ok(())
+
+    /// The autocorrelations as comments, then the `[comm.ar]` table.
+    fn print_toml(&self) {
+        for (d, (r0, rho)) in self.r0.iter().zip(&self.rho).enumerate() {
+            let rho: Vec<String> = rho.iter().map(|x| format!("{x:.4}")).collect();
+            println!(
+                "# coordinate {d}: r(0) = {r0:.6e} (m/s)², autocorrelation [{}]",
+                rho.join(", ")
+            );
+        }
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let rows: Vec<String> = self
+            .coeffs
+            .iter()
+            .map(|c| format!("[{}]", list(c)))
+            .collect();
+        println!("[comm.ar]");
+        println!("coeffs = [{}]", rows.join(", "));
+        println!("noise_var = [{}]", list(&self.noise_var));
+    }
 }
 
 /// Loads a filter scenario and applies the overrides. `--allow-divergence` sets the scenario's
@@ -818,6 +867,13 @@ fn reproduce(
     let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
         .into_iter()
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
+    if !slams.is_empty() && over.sizes_filter() {
+        let names: Vec<&str> = slams.iter().map(|e| e.name).collect();
+        if entries.is_empty() {
+            bail!("{}: --runs, --steps, --seed and --every apply to filter scenarios; a SLAM study sets its horizon and step in its file", names.join(", "));
+        }
+        eprintln!("note: {} run as their files set them (--runs, --steps, --seed and --every apply to filter scenarios)", names.join(", "));
+    }
     let files = check_reproductions(&entries, over, pool.current_num_threads())?;
     let (mut prepared, mut slam_prepared) = prepare_reproductions(out, force, &files, &slams)?;
     let start = Instant::now();
@@ -935,24 +991,26 @@ fn reproduce_slams(
     Ok(())
 }
 
-/// The registry entries `names` asks for (`all`: every one), each once.
+/// The registry entries `names` asks for (`all`: every one), each once, in the registry's order,
+/// with every other figure of the simulations they run: a simulation's directory holds all its
+/// figures, so reproducing one never removes another drawn from the same data (a re-run removes
+/// the files it does not write again).
 fn select_entries(names: &[String]) -> Result<Vec<&'static registry::Entry>> {
     if names.is_empty() {
         bail!("name the figures to reproduce (see `edgekf reproduce --list`), or `all`");
     }
-    let mut entries: Vec<&registry::Entry> = Vec::new();
-    for n in names {
-        if n == "all" {
-            entries.extend(registry::ENTRIES.iter());
-        } else {
-            let e = registry::find(n).with_context(|| {
-                format!("unknown figure `{n}`; `edgekf reproduce --list` prints the names")
-            })?;
-            entries.push(e);
-        }
+    let mut files: Vec<&str> = Vec::new();
+    for n in names.iter().filter(|n| *n != "all") {
+        let e = registry::find(n).with_context(|| {
+            format!("unknown figure `{n}`; `edgekf reproduce --list` prints the names")
+        })?;
+        files.push(e.file);
     }
-    entries.dedup_by_key(|e| e.name);
-    Ok(entries)
+    let all = names.iter().any(|n| n == "all");
+    Ok(registry::ENTRIES
+        .iter()
+        .filter(|e| all || files.contains(&e.file))
+        .collect())
 }
 
 /// Every scenario the entries simulate, checked before any runs so that a bad flag fails at

@@ -267,7 +267,15 @@ fn reproduce_lists_and_runs_figures() {
     // One directory per simulation, its figures beside its data.
     assert!(dir.join("eusipco/eusipco-fig3.png").exists());
     assert!(dir.join("eusipco/metrics.csv").exists());
-    assert!(!dir.join("eusipco/eusipco-fig4a.png").exists());
+    // With every other figure of that simulation (they draw the same data).
+    for f in [
+        "eusipco-fig4a",
+        "eusipco-fig4b",
+        "thesis-fig5.1",
+        "thesis-fig5.3-ratio",
+    ] {
+        assert!(dir.join(format!("eusipco/{f}.png")).exists(), "{f}");
+    }
 }
 
 #[test]
@@ -308,6 +316,32 @@ fn fit_ar_prints_a_table_a_scenario_can_take() {
     let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--from", "0"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--from"));
+    // --json: the same fit, for scripts.
+    let o = edgekf(&[
+        "fit-ar",
+        sc.to_str().unwrap(),
+        "--order",
+        "2",
+        "--estimator",
+        "rkf",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_slice(&o.stdout).expect("fit-ar --json prints JSON");
+    assert_eq!(
+        v["coeffs"],
+        serde_json::to_value(ar["coeffs"].clone()).unwrap()
+    );
+    assert_eq!(
+        v["noise_var"],
+        serde_json::to_value(ar["noise_var"].clone()).unwrap()
+    );
+    assert_eq!(v["estimator"], "rkf");
+    // --every has nothing to do in a fit: refused.
+    let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--every", "5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("flag `--every`"));
 }
 
 /// `--shard I/K` runs contiguous run ranges with the usual per-run seeds; `merge` writes a

@@ -242,6 +242,46 @@ fn reproduce_checks_every_directory_before_running() {
     assert!(err(&o).contains("thesis-fig3.3/"), "{}", err(&o));
 }
 
+/// A figure reproduced on its own brings the other figures of its simulation, so reproducing
+/// one after another into the same root keeps both (a re-run removes the files it does not
+/// write again); a SLAM study is not sized by the filter studies' flags: alone it is refused,
+/// beside filter studies it is named.
+#[test]
+fn reproduce_keeps_a_simulations_figures_together() {
+    let dir = tmp("siblings");
+    let root = dir.join("figures");
+    let rep = |names: &[&str], extra: &[&str]| {
+        let mut args = vec!["reproduce"];
+        args.extend_from_slice(names);
+        args.extend_from_slice(&["--out", root.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        edgekf(&args)
+    };
+    let small = ["--runs", "2", "--steps", "100"];
+    for name in ["thesis-fig3.3", "thesis-fig3.4"] {
+        let o = rep(&[name], &small);
+        assert!(o.status.success(), "{}", err(&o));
+        let sim = root.join("thesis-fig3.3");
+        assert!(sim.join("thesis-fig3.3.png").is_file(), "{:?}", names(&sim));
+        assert!(sim.join("thesis-fig3.4.png").is_file(), "{:?}", names(&sim));
+    }
+    let o = rep(&["slam-fig3"], &["--steps", "100"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err(&o).contains("slam-fig3: --runs, --steps"),
+        "{}",
+        err(&o)
+    );
+    assert!(!root.join("slam-fig3").exists());
+    let o = rep(&["slam-fig3", "thesis-fig3.3"], &small);
+    assert!(o.status.success(), "{}", err(&o));
+    assert!(
+        err(&o).contains("note: slam-fig3 run as their files set them"),
+        "{}",
+        err(&o)
+    );
+}
+
 #[test]
 fn design_and_slam_directories_hold_one_output() {
     let dir = tmp("design");

@@ -47,6 +47,13 @@ impl Kind {
     pub(crate) fn of(observed: bool, geometric: bool) -> Kind {
         Kind(u8::from(observed) | (u8::from(!observed & geometric) << 1))
     }
+
+    /// Whether two steps' kinds are the same, every byte compared without an early exit: the
+    /// compiler vectorises this, where the derived `==` of two slices compares one kind at a
+    /// time (4.5 % of Li & Rajan Fig. 13's samples).
+    fn same(a: &[Kind], b: &[Kind]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).fold(0, |acc, (x, y)| acc | (x.0 ^ y.0)) == 0
+    }
 }
 
 /// Marks a run with its own covariance in [`Classes::of`] (the low bits its place in `solo`).
@@ -316,7 +323,7 @@ impl Classes {
         kinds: &[Kind],
         cw: &mut ClassWork,
     ) {
-        if self.per_run || kinds == &self.last[..] {
+        if self.per_run || Kind::same(kinds, &self.last) {
             return;
         }
         self.last.copy_from_slice(kinds);
