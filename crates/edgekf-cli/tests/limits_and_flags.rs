@@ -202,3 +202,30 @@ fn allow_divergence_flag_and_key_do_the_same_thing_at_load_time() {
     let o = edgekf(&["fit-ar", plain.to_str().unwrap(), "--allow-divergence"]);
     assert!(!err(&o).contains("sim.dt"), "{}", err(&o));
 }
+
+/// A sweep value of the wrong type is named as such (it was reported as a value that needs
+/// `sweep.labels`), with the option it would set.
+#[test]
+fn a_sweep_value_of_the_wrong_type_is_named() {
+    let dir = tmp("sweep-type");
+    let sc = hexagon(
+        &dir,
+        "s.toml",
+        "\"rkf\"",
+        "runs = 2\nsteps = 10\n[sweep]\nparameter = \"estimators.rkf.sigma_w\"\nvalues = [\"a\", 0.002]",
+    );
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = err(&o);
+    assert!(e.contains("key `sweep.values[0]`"), "{e}");
+    assert!(
+        e.contains("option `sigma_w`: invalid type: string \"a\""),
+        "{e}"
+    );
+    assert!(!dir.join("o").exists());
+}

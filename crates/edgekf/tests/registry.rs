@@ -141,8 +141,23 @@ fn its_options_are_checked_by_its_own_rules() {
         .with("prior_var", 1e-3)])
     .unwrap_err();
     assert!(e.message.contains("unknown field `prior_var`"), "{e}");
+    assert!(
+        e.message
+            .contains("every estimator also takes `kind`, `label`, `samples`"),
+        "{e}"
+    );
     let e = scenario(vec![EstimatorEntry::kind("smoother").with("alpha", 2.0)]).unwrap_err();
     assert!(e.message.contains("`alpha` must lie in (0, 1]"), "{e}");
+    // A value of the wrong type: serde names no option; the message does.
+    let e = scenario(vec![EstimatorEntry::kind("smoother").with("alpha", "big")]).unwrap_err();
+    assert!(e.message.contains("option `alpha`: invalid type"), "{e}");
+    let e = scenario(vec![EstimatorEntry::kind("mmse").with("prior_var", "big")]).unwrap_err();
+    assert!(
+        e.message.contains("mmse: option `prior_var`: invalid type"),
+        "{e}"
+    );
+    let e = scenario(vec![EstimatorEntry::kind("mmse")]).unwrap_err();
+    assert!(e.message.contains("give the estimator as a table"), "{e}");
 }
 
 #[test]

@@ -653,9 +653,18 @@ pub(crate) fn estimators(
                 }
             }
         };
-        let config = kind
-            .configure(&opts, model)
-            .map_err(|m| err(&key, format!("{kind_name}: {m}")))?;
+        let config = kind.configure(&opts, model).map_err(|m| {
+            let also = if m.starts_with("unknown field") {
+                " (its options; every estimator also takes `kind`, `label`, `samples`)".to_string()
+            } else if m.starts_with("missing field") {
+                format!(
+                    ": give the estimator as a table with it, `{{ kind = \"{kind_name}\", … }}`"
+                )
+            } else {
+                String::new()
+            };
+            err(&key, format!("{kind_name}: {m}{also}"))
+        })?;
         defs.push(EstimatorDef {
             label,
             kind: kind.name(),

@@ -212,7 +212,6 @@ impl Scenario {
         let mut out = Vec::with_capacity(spec.values.len());
         for (k, value) in spec.values.iter().enumerate() {
             let key = format!("sweep.values[{k}]");
-            let label = label_of(spec, k).map_err(|m| err("sweep.labels", m))?;
             let mut v = base.clone();
             let path =
                 resolved_path(&mut v, &spec.parameter).map_err(|m| err("sweep.parameter", m))?;
@@ -228,6 +227,9 @@ impl Scenario {
                     ),
                 )
             })?;
+            // After the value is checked: a value of the wrong type is named as such, not as
+            // a value that needs a label.
+            let label = label_of(spec, k).map_err(|m| err("sweep.labels", m))?;
             out.push(SweepPoint {
                 label,
                 value: value.as_f64(),
