@@ -735,7 +735,7 @@ fn apply_overrides(mut sc: Scenario, over: &Overrides) -> Result<Scenario> {
     if let Some(s) = over.seed {
         sc = sc.with_seed(s);
     }
-    for w in sc.window_warnings() {
+    for w in sc.warnings() {
         eprintln!("warning: {}: {w}", sc.name());
     }
     Ok(sc)

@@ -229,3 +229,35 @@ fn a_sweep_value_of_the_wrong_type_is_named() {
     );
     assert!(!dir.join("o").exists());
 }
+
+/// `--every` as long as the run is valid but reports two steps: said, not silent.
+#[test]
+fn a_report_interval_as_long_as_the_run_is_said() {
+    let dir = tmp("every");
+    let sc = hexagon(&dir, "e.toml", "\"rkf\"", "runs = 2\nsteps = 200");
+    let out = dir.join("o");
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--every",
+        "1000",
+    ]);
+    assert!(o.status.success(), "{}", err(&o));
+    assert!(
+        err(&o).contains("`sim.every` = 1000 ≥ steps = 200"),
+        "{}",
+        err(&o)
+    );
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--every",
+        "10",
+    ]);
+    assert!(o.status.success(), "{}", err(&o));
+    assert!(!err(&o).contains("sim.every"), "{}", err(&o));
+}

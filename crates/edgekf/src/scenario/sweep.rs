@@ -256,7 +256,7 @@ pub fn summary_metrics(sc: &Scenario) -> Vec<String> {
 
 /// A well-formed window. One that starts after the end of the run is accepted (a `--steps`
 /// override may shorten a run below its windows, and the resolved scenario of that run must
-/// re-run): its summaries are undefined and left out, and [`Scenario::window_warnings`] says so.
+/// re-run): its summaries are undefined and left out, and [`Scenario::warnings`] says so.
 fn window(key: &str, w: [f64; 2]) -> Result<(), ScenarioError> {
     if !(w[0].is_finite() && w[1].is_finite() && w[0] >= 0.0 && w[0] < w[1]) {
         return Err(err(
@@ -268,11 +268,20 @@ fn window(key: &str, w: [f64; 2]) -> Result<(), ScenarioError> {
 }
 
 impl Scenario {
-    /// The windows (of the sweep and the figures) that start after the end of the run, as
-    /// warnings naming the key: their summaries and panels are empty.
-    pub fn window_warnings(&self) -> Vec<String> {
+    /// What a valid scenario does that its author may not expect, as warnings naming the key:
+    /// windows (of the sweep and the figures) that start after the end of the run — their
+    /// summaries and panels are empty — and a report interval `every` as long as the run
+    /// (with no log-spaced reports), which reports step 1 and the last only.
+    pub fn warnings(&self) -> Vec<String> {
         let horizon = self.steps() as f64 * self.dt();
         let mut out = Vec::new();
+        if self.every() >= self.steps() && self.report_steps().len() <= 2 && self.steps() > 2 {
+            out.push(format!(
+                "`sim.every` = {} ≥ steps = {}: only step 1 and the last are reported (the steady-state mean is the last report alone)",
+                self.every(),
+                self.steps()
+            ));
+        }
         let mut warn = |key: String, w: [f64; 2]| {
             if w[0] > horizon {
                 out.push(format!(
