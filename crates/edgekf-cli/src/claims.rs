@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use edgekf::sim::Observer;
 use edgekf_claims::rule::num;
@@ -118,43 +118,33 @@ pub fn run(args: &ClaimsArgs) -> Result<()> {
 }
 
 /// The simulations of `claims` whose directory in `dir` holds that simulation's study (as
-/// `reproduce --out DIR` writes it): whether each gets its `claims.json`. Refused: `dir` itself
-/// a study's directory, or a simulation's directory holding something else — the claims of one
-/// study must not land among another's files. A simulation without a directory gets none (a
-/// directory holding only `claims.json` would then be refused by `reproduce`), which is said.
+/// `reproduce --out DIR` writes it): whether each gets its `claims.json`. Refused before any
+/// simulation runs: `dir` not a directory or a study's own directory, or a simulation's
+/// directory holding something else — the claims of one study must not land among another's
+/// files. A simulation without a directory (or with an empty one) gets none, which is said: a
+/// directory holding only `claims.json` would be refused by a later `reproduce`.
 fn study_dirs(dir: &Path, claims: &[edgekf_claims::Claim]) -> Result<BTreeMap<&'static str, bool>> {
-    use edgekf_io::outdir::provenance;
-    if let Some(p) = provenance(dir) {
-        anyhow::bail!(
-            "{}: holds the {} `{}`, not the output of `edgekf reproduce`; `claims --out` writes \
+    use edgekf_io::outdir;
+    if dir.exists() && !dir.is_dir() {
+        bail!(
+            "{}: exists and is not a directory; choose another --out",
+            dir.display()
+        );
+    }
+    if let Some(what) = outdir::held(dir) {
+        bail!(
+            "{}: holds {what}, not the output of `edgekf reproduce`; `claims --out` writes \
              claims.json and claims.md there and each simulation's claims.json into its \
              directory: give the directory `reproduce --out` wrote, or a new one",
-            dir.display(),
-            p.kind,
-            p.name
+            dir.display()
         );
     }
     let mut beside = BTreeMap::new();
     for c in claims {
         let sim = edgekf_claims::simulation_of(c);
-        let sub = dir.join(sim);
-        let ours = match provenance(&sub) {
-            Some(p) if p.name == sim && (p.kind == "study" || p.kind == "slam") => true,
-            Some(p) => anyhow::bail!(
-                "{}: holds the {} `{}`, not the simulation `{sim}` whose claims.json would go \
-                 there; give the directory `reproduce --out` wrote, or a new one",
-                sub.display(),
-                p.kind,
-                p.name
-            ),
-            None if sub.exists() => anyhow::bail!(
-                "{}: is not a directory `edgekf reproduce` wrote (no provenance.json); \
-                 give the directory `reproduce --out` wrote, or a new one",
-                sub.display()
-            ),
-            None => false,
-        };
-        beside.insert(sim, ours);
+        if !beside.contains_key(sim) {
+            beside.insert(sim, holds_simulation(dir, c)?);
+        }
     }
     let missing: Vec<&str> = beside
         .iter()
@@ -171,6 +161,20 @@ fn study_dirs(dir: &Path, claims: &[edgekf_claims::Claim]) -> Result<BTreeMap<&'
         );
     }
     Ok(beside)
+}
+
+/// Whether `dir`'s directory of the simulation of claim `c` holds that simulation's study
+/// ([`edgekf_io::outdir::holds`]); refused when it holds anything else.
+fn holds_simulation(dir: &Path, c: &edgekf_claims::Claim) -> Result<bool> {
+    let sim = edgekf_claims::simulation_of(c);
+    let slam = edgekf_io::reproductions::find(c.reproduction).is_some_and(|e| e.is_slam());
+    let id = edgekf_io::outdir::StudyId::new(if slam { "slam" } else { "study" }, sim);
+    edgekf_io::outdir::holds(&dir.join(sim), &id).map_err(|m| {
+        anyhow::anyhow!(
+            "{m}: its claims.json would mix with them; give the directory `reproduce --out` \
+             wrote, or a new one"
+        )
+    })
 }
 
 fn json(outcomes: &[Outcome]) -> Result<String> {
@@ -193,7 +197,8 @@ fn write_out(dir: &Path, outcomes: &[Outcome], beside: &BTreeMap<&str, bool>) ->
             .push(o.clone());
     }
     for (sim, list) in by_sim {
-        if !beside.get(sim).copied().unwrap_or(false) {
+        // Checked again: the directory may have changed while the simulations ran.
+        if !beside.get(sim).copied().unwrap_or(false) || !holds_simulation(dir, &list[0].claim)? {
             continue;
         }
         let mut st = crate::interrupt::stage(&dir.join(sim))?;

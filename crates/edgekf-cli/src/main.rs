@@ -57,8 +57,8 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Run one scenario file and write scenario.json, metrics.csv, paths.csv, status.csv,
-    /// frames.json (the report page's player), provenance.json and its figures; print the
-    /// steady-state summary.
+    /// frames.json (the report page's player, when the study has frames), provenance.json and
+    /// its figures; print the steady-state summary.
     Run {
         /// Scenario file: TOML, or a resolved scenario.json.
         scenario: PathBuf,
@@ -252,6 +252,9 @@ impl Default for Overrides {
         }
     }
 }
+
+/// Why a SLAM study is not sized by the flags of a filter study.
+const SLAM_SIZES: &str = "--runs, --steps, --seed and --every apply to filter scenarios; a SLAM study sets its horizon and step in its file";
 
 impl Overrides {
     /// Whether a flag that sizes or seeds a filter study (`--runs`, `--steps`, `--seed`,
@@ -455,7 +458,7 @@ fn run_slam(
     over: &Overrides,
 ) -> Result<ExitCode> {
     if over.sizes_filter() || shard {
-        bail!("{source}: --runs, --steps, --seed, --every and --shard apply to filter scenarios; a SLAM scenario sets its horizon and step in the file");
+        bail!("{source}: {SLAM_SIZES} (and --shard)");
     }
     let id = StudyId::new("slam", &slam::study_name(source, text)?);
     let prep = outdir::prepare(out, &id, force, Hint::CLI)?;
@@ -870,9 +873,17 @@ fn reproduce(
     if !slams.is_empty() && over.sizes_filter() {
         let names: Vec<&str> = slams.iter().map(|e| e.name).collect();
         if entries.is_empty() {
-            bail!("{}: --runs, --steps, --seed and --every apply to filter scenarios; a SLAM study sets its horizon and step in its file", names.join(", "));
+            bail!("{}: {SLAM_SIZES}", names.join(", "));
         }
-        eprintln!("note: {} run as their files set them (--runs, --steps, --seed and --every apply to filter scenarios)", names.join(", "));
+        eprintln!(
+            "note: {} at the size of {}: {SLAM_SIZES}",
+            names.join(", "),
+            if names.len() == 1 {
+                "its file"
+            } else {
+                "their files"
+            }
+        );
     }
     let files = check_reproductions(&entries, over, pool.current_num_threads())?;
     let (mut prepared, mut slam_prepared) = prepare_reproductions(out, force, &files, &slams)?;

@@ -92,7 +92,7 @@ fn out_never_mixes_with_a_study() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("holds the slam `slam-fig3`, not the output of `edgekf reproduce`"),
+        err.contains("holds the SLAM study `slam-fig3`, not the output of `edgekf reproduce`"),
         "{err}"
     );
     assert!(
@@ -117,6 +117,39 @@ fn out_never_mixes_with_a_study() {
     assert_eq!(names, ["claims.json", "claims.md"]);
     let o = edgekf(&["reproduce", "slam-fig3", "--out", fresh.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    // A simulation's directory that holds another study, or files without a provenance, is
+    // refused naming it; an empty one is no directory; a file is no root.
+    let root = base.join("root");
+    fs::create_dir_all(&root).unwrap();
+    let refused = |what: &str| {
+        let o = edgekf(&["claims", "slam-fig3", "--out", root.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success() && err.contains(what), "{what}: {err}");
+        assert!(!root.join("claims.json").exists(), "{what}");
+    };
+    fs::rename(&study, root.join("slam-fig3")).unwrap();
+    fs::write(
+        root.join("slam-fig3/provenance.json"),
+        fs::read_to_string(root.join("slam-fig3/provenance.json"))
+            .unwrap()
+            .replace("\"slam-fig3\"", "\"elsewhere\""),
+    )
+    .unwrap();
+    refused("holds the SLAM study `elsewhere`; this is for the SLAM study `slam-fig3`");
+    fs::remove_dir_all(root.join("slam-fig3")).unwrap();
+    fs::create_dir(root.join("slam-fig3")).unwrap();
+    fs::write(root.join("slam-fig3/notes.txt"), "mine").unwrap();
+    refused("holds `notes.txt` and no readable provenance.json");
+    fs::remove_file(root.join("slam-fig3/notes.txt")).unwrap();
+    let o = edgekf(&["claims", "slam-fig3", "--out", root.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!root.join("slam-fig3/claims.json").exists());
+    let file = base.join("a-file");
+    fs::write(&file, "x").unwrap();
+    let o = edgekf(&["claims", "slam-fig3", "--out", file.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exists and is not a directory"));
     let _ = fs::remove_dir_all(&base);
 }
 

@@ -329,14 +329,26 @@ fn fit_ar_prints_a_table_a_scenario_can_take() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value =
         serde_json::from_slice(&o.stdout).expect("fit-ar --json prints JSON");
-    assert_eq!(
-        v["coeffs"],
-        serde_json::to_value(ar["coeffs"].clone()).unwrap()
-    );
-    assert_eq!(
-        v["noise_var"],
-        serde_json::to_value(ar["noise_var"].clone()).unwrap()
-    );
+    // The same numbers as the table (compared as f64: TOML reads a whole number as an integer).
+    let floats = |t: &toml::Value| -> Vec<f64> {
+        let flat = |x: &toml::Value| match x {
+            toml::Value::Array(a) => a
+                .iter()
+                .map(|y| y.as_float().or(y.as_integer().map(|i| i as f64)).unwrap())
+                .collect(),
+            y => vec![y.as_float().unwrap()],
+        };
+        t.as_array().unwrap().iter().flat_map(flat).collect()
+    };
+    let json_floats = |j: &serde_json::Value| -> Vec<f64> {
+        let flat = |x: &serde_json::Value| match x {
+            serde_json::Value::Array(a) => a.iter().map(|y| y.as_f64().unwrap()).collect(),
+            y => vec![y.as_f64().unwrap()],
+        };
+        j.as_array().unwrap().iter().flat_map(flat).collect()
+    };
+    assert_eq!(json_floats(&v["coeffs"]), floats(&ar["coeffs"]));
+    assert_eq!(json_floats(&v["noise_var"]), floats(&ar["noise_var"]));
     assert_eq!(v["estimator"], "rkf");
     // --every has nothing to do in a fit: refused.
     let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--every", "5"]);

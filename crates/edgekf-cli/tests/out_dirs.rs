@@ -276,7 +276,7 @@ fn reproduce_keeps_a_simulations_figures_together() {
     let o = rep(&["slam-fig3", "thesis-fig3.3"], &small);
     assert!(o.status.success(), "{}", err(&o));
     assert!(
-        err(&o).contains("note: slam-fig3 run as their files set them"),
+        err(&o).contains("note: slam-fig3 at the size of its file"),
         "{}",
         err(&o)
     );

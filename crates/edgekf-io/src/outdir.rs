@@ -398,6 +398,46 @@ pub fn prepare(
     }
 }
 
+/// For a command that writes files derived from a study beside it (`edgekf claims --out`, its
+/// `claims.json`): whether `dir` holds the study `study`. `Ok(false)` when `dir` does not exist
+/// or holds nothing visible; `Ok(true)` when its provenance names that study; otherwise the
+/// reason it is refused, naming what it holds (no `--force` advice: such a command never
+/// empties a directory).
+///
+/// # Errors
+/// The message, when `dir` is not a directory, holds another study, or holds files without a
+/// readable `provenance.json`.
+pub fn holds(dir: &Path, study: &StudyId) -> Result<bool, String> {
+    let shown = dir.display();
+    if !dir.exists() {
+        return Ok(false);
+    }
+    if !dir.is_dir() {
+        return Err(format!("{shown}: exists and is not a directory"));
+    }
+    match provenance(dir) {
+        Some(p) if p.kind == study.kind && p.name == study.name => Ok(true),
+        Some(p) => Err(format!("{shown}: holds {}; this is for {study}", found(&p))),
+        None => {
+            let list = entries(dir).map_err(|e| e.to_string())?;
+            if list.is_empty() {
+                return Ok(false);
+            }
+            let names: Vec<String> = list.into_iter().map(|(n, _)| n).collect();
+            Err(format!(
+                "{shown}: holds {} and no readable provenance.json, so not {study}",
+                few(&names)
+            ))
+        }
+    }
+}
+
+/// What a study's directory holds (`the study `name``, …), from its provenance; `None` when
+/// `dir` has no readable provenance.
+pub fn held(dir: &Path) -> Option<String> {
+    provenance(dir).map(|p| found(&p))
+}
+
 /// Checks the root of a `reproduce` output (a directory of study directories): it must not
 /// itself be a study's directory. With `force`, a study's directory is emptied.
 ///

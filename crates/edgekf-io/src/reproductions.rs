@@ -1,7 +1,7 @@
 //! The shipped scenarios and the paper figures they reproduce (`edgekf reproduce`).
 //!
 //! Several figures come from one simulation (e.g. thesis Figs 4.9–4.11); `reproduce` runs each
-//! scenario file once and draws every requested figure from it. The scenario texts are embedded
+//! scenario file once and draws every figure of it, whichever of them was asked for. The scenario texts are embedded
 //! at build time, so the reproductions work from any directory. The files live in this crate's
 //! `scenarios/` directory (the repository's top-level `scenarios` links to it).
 

@@ -143,7 +143,7 @@ fn its_options_are_checked_by_its_own_rules() {
     assert!(e.message.contains("unknown field `prior_var`"), "{e}");
     assert!(
         e.message
-            .contains("every estimator also takes `kind`, `label`, `samples`"),
+            .contains("every estimator also takes `kind`, `label` and `samples`"),
         "{e}"
     );
     let e = scenario(vec![EstimatorEntry::kind("smoother").with("alpha", 2.0)]).unwrap_err();
@@ -156,8 +156,18 @@ fn its_options_are_checked_by_its_own_rules() {
         e.message.contains("mmse: option `prior_var`: invalid type"),
         "{e}"
     );
+    // An option whose own message names it is not named twice.
+    let e = scenario(vec![
+        EstimatorEntry::kind("rkf").with("adaptive", "sometimes")
+    ])
+    .unwrap_err();
+    assert_eq!(e.message.matches("option `adaptive`").count(), 1, "{e}");
     let e = scenario(vec![EstimatorEntry::kind("mmse")]).unwrap_err();
-    assert!(e.message.contains("give the estimator as a table"), "{e}");
+    assert!(
+        e.message
+            .contains("add it to its table, `{ kind = \"mmse\", prior_var = … }`"),
+        "{e}"
+    );
 }
 
 #[test]

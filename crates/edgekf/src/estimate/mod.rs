@@ -384,19 +384,26 @@ pub trait EstimatorKind: Send + Sync {
 /// The deserializer's message, e.g. "unknown field `prior_var`, expected `p_fail`".
 pub fn parse_options<T: DeserializeOwned>(options: &Options) -> Result<T, String> {
     serde_json::from_value(serde_json::Value::Object(options.clone())).map_err(|e| {
-        // serde names no option for a value of the wrong type: the option that fails alone
-        // (not merely for the others it lacks) is the one to name.
-        let fails_alone = |(k, v): &(&String, &serde_json::Value)| {
-            let one = Options::from_iter([((*k).clone(), (*v).clone())]);
+        let whole = e.to_string();
+        if whole.starts_with("unknown field") || whole.starts_with("option `") {
+            return whole;
+        }
+        // serde names no option for a value of the wrong type: the one option that fails
+        // alone with this very error (not merely for the others it lacks) is named.
+        let alone = |k: &String, v: &serde_json::Value| {
+            let one = Options::from_iter([(k.clone(), v.clone())]);
             serde_json::from_value::<T>(serde_json::Value::Object(one))
                 .err()
-                .is_some_and(|e| !e.to_string().starts_with("missing field"))
+                .map(|e| e.to_string())
         };
-        match options.iter().find(fails_alone) {
-            Some((k, _)) if !e.to_string().starts_with("unknown field") => {
-                format!("option `{k}`: {e}")
-            }
-            _ => e.to_string(),
+        let culprits: Vec<&String> = options
+            .iter()
+            .filter(|(k, v)| alone(k, v).as_deref() == Some(whole.as_str()))
+            .map(|(k, _)| k)
+            .collect();
+        match culprits[..] {
+            [k] => format!("option `{k}`: {whole}"),
+            _ => whole,
         }
     })
 }

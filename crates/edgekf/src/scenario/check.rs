@@ -655,11 +655,10 @@ pub(crate) fn estimators(
         };
         let config = kind.configure(&opts, model).map_err(|m| {
             let also = if m.starts_with("unknown field") {
-                " (its options; every estimator also takes `kind`, `label`, `samples`)".to_string()
-            } else if m.starts_with("missing field") {
-                format!(
-                    ": give the estimator as a table with it, `{{ kind = \"{kind_name}\", … }}`"
-                )
+                "; every estimator also takes `kind`, `label` and `samples`".to_string()
+            } else if let Some(field) = m.strip_prefix("missing field `") {
+                let field = field.split('`').next().unwrap_or_default();
+                format!(": add it to its table, `{{ kind = \"{kind_name}\", {field} = … }}`")
             } else {
                 String::new()
             };
