@@ -609,29 +609,7 @@ fn fit_ar(
     p.0.finish_and_clear();
     let fit = ArFit::of(&res.input_acov[e])?;
     let label = sc.estimators()[e].label();
-    if over.json {
-        let v = serde_json::json!({
-            "estimator": label, "order": order, "from": from, "steps": sc.steps(),
-            "runs": sc.runs(), "agents": sc.framework().agents(), "seed": sc.seed(),
-            "source": source, "r0": fit.r0, "autocorrelation": fit.rho,
-            "coeffs": fit.coeffs, "noise_var": fit.noise_var,
-        });
-        println!("{}", serde_json::to_string_pretty(&v)?);
-        return Ok(());
-    }
-    println!(
-        "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{label}`,"
-    );
-    println!(
-        "# {} runs × {} agents, steps {from}..={} of {}, seed {}",
-        sc.runs(),
-        sc.framework().agents(),
-        sc.steps(),
-        source,
-        sc.seed()
-    );
-    fit.print_toml();
-    Ok(())
+    fit.print(&sc, label, (order, from), &source, over.json)
 }
 
 /// The Yule–Walker fit of each coordinate's input autocovariances (lags 0..=order): what
@@ -669,6 +647,40 @@ impl ArFit {
             fit.noise_var.push(v);
         }
         Ok(fit)
+    }
+
+    /// Prints the fit of the inputs of the loop `label` of `sc` (fitted over steps `from` on
+    /// with `order` lags): as JSON, or as comments on where it comes from and the table.
+    fn print(
+        &self,
+        sc: &Scenario,
+        label: &str,
+        (order, from): (usize, usize),
+        source: &str,
+        json: bool,
+    ) -> Result<()> {
+        let agents = sc.framework().agents();
+        if json {
+            let v = serde_json::json!({
+                "estimator": label, "order": order, "from": from, "steps": sc.steps(),
+                "runs": sc.runs(), "agents": agents, "seed": sc.seed(), "source": source,
+                "r0": self.r0, "autocorrelation": self.rho,
+                "coeffs": self.coeffs, "noise_var": self.noise_var,
+            });
+            println!("{}", serde_json::to_string_pretty(&v)?);
+            return Ok(());
+        }
+        println!(
+            "# AR({order}) fit (Yule–Walker) of the inputs u_k of every agent in the closed loop of `{label}`,"
+        );
+        println!(
+            "# {} runs × {agents} agents, steps {from}..={} of {source}, seed {}",
+            sc.runs(),
+            sc.steps(),
+            sc.seed()
+        );
+        self.print_toml();
+        Ok(())
     }
 
     /// The autocorrelations as comments, then the `[comm.ar]` table.
@@ -870,21 +882,7 @@ fn reproduce(
     let (slams, entries): (Vec<&registry::Entry>, Vec<&registry::Entry>) = entries
         .into_iter()
         .partition(|e| matches!(io::kind_of(e.text), io::Kind::Slam));
-    if !slams.is_empty() && over.sizes_filter() {
-        let names: Vec<&str> = slams.iter().map(|e| e.name).collect();
-        if entries.is_empty() {
-            bail!("{}: {SLAM_SIZES}", names.join(", "));
-        }
-        eprintln!(
-            "note: {} at the size of {}: {SLAM_SIZES}",
-            names.join(", "),
-            if names.len() == 1 {
-                "its file"
-            } else {
-                "their files"
-            }
-        );
-    }
+    check_slam_sizes(&slams, entries.is_empty(), over)?;
     let files = check_reproductions(&entries, over, pool.current_num_threads())?;
     let (mut prepared, mut slam_prepared) = prepare_reproductions(out, force, &files, &slams)?;
     let start = Instant::now();
@@ -949,6 +947,28 @@ fn reproduce(
         start.elapsed()
     );
     Ok(code)
+}
+
+/// A SLAM study is not sized by `--runs`, `--steps`, `--seed` or `--every`: refused when only
+/// SLAM studies are reproduced (`alone`), said when filter studies take them.
+fn check_slam_sizes(slams: &[&registry::Entry], alone: bool, over: &Overrides) -> Result<()> {
+    if slams.is_empty() || !over.sizes_filter() {
+        return Ok(());
+    }
+    let names: Vec<&str> = slams.iter().map(|e| e.name).collect();
+    if alone {
+        bail!("{}: {SLAM_SIZES}", names.join(", "));
+    }
+    eprintln!(
+        "note: {} at the size of {}: {SLAM_SIZES}",
+        names.join(", "),
+        if names.len() == 1 {
+            "its file"
+        } else {
+            "their files"
+        }
+    );
+    Ok(())
 }
 
 /// The SLAM studies' identities and prepared directories (taken when each is committed).

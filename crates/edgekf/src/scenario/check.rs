@@ -654,14 +654,7 @@ pub(crate) fn estimators(
             }
         };
         let config = kind.configure(&opts, model).map_err(|m| {
-            let also = if m.starts_with("unknown field") {
-                "; every estimator also takes `kind`, `label` and `samples`".to_string()
-            } else if let Some(field) = m.strip_prefix("missing field `") {
-                let field = field.split('`').next().unwrap_or_default();
-                format!(": add it to its table, `{{ kind = \"{kind_name}\", {field} = … }}`")
-            } else {
-                String::new()
-            };
+            let also = option_hint(&kind_name, &m);
             err(&key, format!("{kind_name}: {m}{also}"))
         })?;
         defs.push(EstimatorDef {
@@ -672,6 +665,19 @@ pub(crate) fn estimators(
         });
     }
     Ok(defs)
+}
+
+/// What to add to an estimator's option error `m` (from serde): the options every estimator
+/// takes, to an unknown option's list; where a missing one goes.
+fn option_hint(kind_name: &str, m: &str) -> String {
+    if m.starts_with("unknown field") {
+        "; every estimator also takes `kind`, `label` and `samples`".to_string()
+    } else if let Some(field) = m.strip_prefix("missing field `") {
+        let field = field.split('`').next().unwrap_or_default();
+        format!(": add it to its table, `{{ kind = \"{kind_name}\", {field} = … }}`")
+    } else {
+        String::new()
+    }
 }
 
 #[cfg(test)]
