@@ -227,7 +227,30 @@ fn a_sweep_value_of_the_wrong_type_is_named() {
         e.contains("option `sigma_w`: invalid type: string \"a\""),
         "{e}"
     );
+    // The inner key in the file's spelling, not the resolved scenario's.
+    assert!(
+        e.contains("key `estimators[0]`") && !e.contains("estimator_specs"),
+        "{e}"
+    );
     assert!(!dir.join("o").exists());
+    let sc = hexagon(
+        &dir,
+        "r.toml",
+        "\"rkf\"",
+        "runs = 2\nsteps = 10\n[sweep]\nparameter = \"sim.runs\"\nvalues = [2, 0]",
+    );
+    let o = edgekf(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err(&o).contains("`sim.runs` = 0: key `sim.runs`"),
+        "{}",
+        err(&o)
+    );
 }
 
 /// `--every` as long as the run is valid but reports two steps: said, not silent.

@@ -166,6 +166,29 @@ fn set_path(root: &mut Value, path: &[Seg], value: Value, key: &str) -> Result<(
     Ok(())
 }
 
+/// A key of the resolved scenario a sweep value is checked as (`runs`, `estimator_specs[0]`),
+/// in the scenario file's spelling (`sim.runs`, `estimators[0]`), for its messages.
+fn toml_key(resolved: &str) -> String {
+    if let Some(rest) = resolved.strip_prefix("estimator_specs") {
+        return format!("estimators{rest}");
+    }
+    const SIM: [&str; 8] = [
+        "dt",
+        "steps",
+        "runs",
+        "samples_per_step",
+        "every",
+        "paths_run",
+        "reports_per_decade",
+        "paths_per_decade",
+    ];
+    match resolved {
+        k if SIM.contains(&k) || k == "allow_divergence" => format!("sim.{k}"),
+        "leaders" => "framework.leaders".into(),
+        other => other.into(),
+    }
+}
+
 /// The label of value `k`.
 fn label_of(spec: &SweepSpec, k: usize) -> Result<String, String> {
     if let Some(l) = &spec.labels {
@@ -223,7 +246,9 @@ impl Scenario {
                     &key,
                     format!(
                         "`{}` = {value}: key `{}`: {}",
-                        spec.parameter, e.key, e.message
+                        spec.parameter,
+                        toml_key(&e.key),
+                        e.message
                     ),
                 )
             })?;
