@@ -458,7 +458,7 @@ fn run_slam(
     over: &Overrides,
 ) -> Result<ExitCode> {
     if over.sizes_filter() || shard {
-        bail!("{source}: {SLAM_SIZES} (and --shard)");
+        bail!("{source}: {SLAM_SIZES}; --shard, too, splits filter studies only");
     }
     let id = StudyId::new("slam", &slam::study_name(source, text)?);
     let prep = outdir::prepare(out, &id, force, Hint::CLI)?;

@@ -282,14 +282,15 @@ fn reproduce_lists_and_runs_figures() {
 fn fit_ar_prints_a_table_a_scenario_can_take() {
     let dir = tmp("fitar");
     let sc = write_scenario(&dir, SQUARE);
-    let o = edgekf(&[
+    let fit = [
         "fit-ar",
         sc.to_str().unwrap(),
         "--order",
         "2",
         "--estimator",
         "rkf",
-    ]);
+    ];
+    let o = edgekf(&fit);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let out = String::from_utf8_lossy(&o.stdout).to_string();
     let table: toml::Table = toml::from_str(&out).expect("fit-ar prints TOML");
@@ -317,38 +318,22 @@ fn fit_ar_prints_a_table_a_scenario_can_take() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--from"));
     // --json: the same fit, for scripts.
-    let o = edgekf(&[
-        "fit-ar",
-        sc.to_str().unwrap(),
-        "--order",
-        "2",
-        "--estimator",
-        "rkf",
-        "--json",
-    ]);
+    let o = edgekf(&[&fit[..], &["--json"]].concat());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value =
         serde_json::from_slice(&o.stdout).expect("fit-ar --json prints JSON");
-    // The same numbers as the table (compared as f64: TOML reads a whole number as an integer).
-    let floats = |t: &toml::Value| -> Vec<f64> {
-        let flat = |x: &toml::Value| match x {
-            toml::Value::Array(a) => a
-                .iter()
-                .map(|y| y.as_float().or(y.as_integer().map(|i| i as f64)).unwrap())
-                .collect(),
-            y => vec![y.as_float().unwrap()],
+    // The same numbers as the table (as f64: TOML reads a whole number as an integer).
+    let f64s = |j: &serde_json::Value| -> Vec<f64> {
+        let row = |x: &serde_json::Value| match x.as_array() {
+            Some(a) => a.iter().map(|y| y.as_f64().unwrap()).collect(),
+            None => vec![x.as_f64().unwrap()],
         };
-        t.as_array().unwrap().iter().flat_map(flat).collect()
+        j.as_array().unwrap().iter().flat_map(row).collect()
     };
-    let json_floats = |j: &serde_json::Value| -> Vec<f64> {
-        let flat = |x: &serde_json::Value| match x {
-            serde_json::Value::Array(a) => a.iter().map(|y| y.as_f64().unwrap()).collect(),
-            y => vec![y.as_f64().unwrap()],
-        };
-        j.as_array().unwrap().iter().flat_map(flat).collect()
-    };
-    assert_eq!(json_floats(&v["coeffs"]), floats(&ar["coeffs"]));
-    assert_eq!(json_floats(&v["noise_var"]), floats(&ar["noise_var"]));
+    for key in ["coeffs", "noise_var"] {
+        let table = serde_json::to_value(&ar[key]).unwrap();
+        assert_eq!(f64s(&v[key]), f64s(&table), "{key}");
+    }
     assert_eq!(v["estimator"], "rkf");
     // --every has nothing to do in a fit: refused.
     let o = edgekf(&["fit-ar", sc.to_str().unwrap(), "--every", "5"]);

@@ -203,54 +203,41 @@ fn allow_divergence_flag_and_key_do_the_same_thing_at_load_time() {
     assert!(!err(&o).contains("sim.dt"), "{}", err(&o));
 }
 
+/// `edgekf run SC --out DIR EXTRA…`.
+fn run(sc: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    edgekf(&args)
+}
+
 /// A sweep value of the wrong type is named as such (it was reported as a value that needs
-/// `sweep.labels`), with the option it would set.
+/// `sweep.labels`), with the option it would set; the inner key in the file's spelling, not the
+/// resolved scenario's.
 #[test]
 fn a_sweep_value_of_the_wrong_type_is_named() {
     let dir = tmp("sweep-type");
-    let sc = hexagon(
-        &dir,
-        "s.toml",
-        "\"rkf\"",
-        "runs = 2\nsteps = 10\n[sweep]\nparameter = \"estimators.rkf.sigma_w\"\nvalues = [\"a\", 0.002]",
-    );
-    let o = edgekf(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        dir.join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(1));
-    let e = err(&o);
+    let out = dir.join("o");
+    let sweep = |file: &str, parameter: &str, values: &str| {
+        let sim = format!(
+            "runs = 2\nsteps = 10\n[sweep]\nparameter = \"{parameter}\"\nvalues = {values}"
+        );
+        let o = run(&hexagon(&dir, file, "\"rkf\"", &sim), &out, &[]);
+        assert_eq!(o.status.code(), Some(1));
+        assert!(!out.exists());
+        err(&o)
+    };
+    let e = sweep("s.toml", "estimators.rkf.sigma_w", "[\"a\", 0.002]");
     assert!(e.contains("key `sweep.values[0]`"), "{e}");
     assert!(
         e.contains("option `sigma_w`: invalid type: string \"a\""),
         "{e}"
     );
-    // The inner key in the file's spelling, not the resolved scenario's.
     assert!(
         e.contains("key `estimators[0]`") && !e.contains("estimator_specs"),
         "{e}"
     );
-    assert!(!dir.join("o").exists());
-    let sc = hexagon(
-        &dir,
-        "r.toml",
-        "\"rkf\"",
-        "runs = 2\nsteps = 10\n[sweep]\nparameter = \"sim.runs\"\nvalues = [2, 0]",
-    );
-    let o = edgekf(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        dir.join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        err(&o).contains("`sim.runs` = 0: key `sim.runs`"),
-        "{}",
-        err(&o)
-    );
+    let e = sweep("r.toml", "sim.runs", "[2, 0]");
+    assert!(e.contains("`sim.runs` = 0: key `sim.runs`"), "{e}");
 }
 
 /// `--every` as long as the run is valid but reports two steps: said, not silent.
@@ -259,28 +246,14 @@ fn a_report_interval_as_long_as_the_run_is_said() {
     let dir = tmp("every");
     let sc = hexagon(&dir, "e.toml", "\"rkf\"", "runs = 2\nsteps = 200");
     let out = dir.join("o");
-    let o = edgekf(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--every",
-        "1000",
-    ]);
+    let o = run(&sc, &out, &["--every", "1000"]);
     assert!(o.status.success(), "{}", err(&o));
     assert!(
         err(&o).contains("`sim.every` = 1000 ≥ steps = 200"),
         "{}",
         err(&o)
     );
-    let o = edgekf(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--every",
-        "10",
-    ]);
+    let o = run(&sc, &out, &["--every", "10"]);
     assert!(o.status.success(), "{}", err(&o));
     assert!(!err(&o).contains("sim.every"), "{}", err(&o));
 }
