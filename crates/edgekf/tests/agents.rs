@@ -3,7 +3,7 @@
 //! on every shipped scenario (faults, departures, maneuvers, link failures, T > 1, correlated
 //! process noise, every control law the scenarios use) — and the centralised kinds are refused.
 
-use edgekf::agent::{lockstep, Agent, AgentError, LockstepError};
+use edgekf::agent::{lockstep, Agent, AgentError, Exchange, LockstepError, Output, World};
 use edgekf::estimate::Registry;
 use edgekf::scenario::{EstimatorEntry, Scenario, ScenarioSpec};
 use edgekf::sim::{self, Quiet, Results};
@@ -112,6 +112,75 @@ fn every_decentralised_kind_in_lockstep_with_faults() {
         let agents = lockstep(&sc, &Quiet).expect("agents");
         assert_same(&engine, &agents, kind);
     }
+}
+
+/// Run 0 of `sc` in lockstep with a live world (presence tracked, as `edgekf swarm --live`)
+/// whose agent `gone` stops at step `from`: no output or exchange from it after step
+/// `from − 1`, and the world departs it before sensing step `from` — a process that ended.
+fn lockstep_with_an_ended_agent(sc: &Scenario, gone: usize, from: usize) -> Results {
+    let n = sc.framework().agents();
+    let mut world = World::live(sc);
+    let mut agents: Vec<Agent> = (0..n)
+        .map(|i| Agent::new(sc, i, true).expect("agent"))
+        .collect();
+    let mut last: Vec<Option<Output>> = vec![None; n];
+    for k in 1..=sc.steps() {
+        if k == from {
+            world.depart(gone);
+        }
+        let ended = |i: usize| i == gone && k >= from;
+        let sensing = world.sense();
+        let mut exchanges: Vec<Option<Exchange>> = Vec::with_capacity(n);
+        for (i, (a, s)) in agents.iter_mut().zip(&sensing).enumerate() {
+            let x = if ended(i) {
+                None
+            } else {
+                a.begin(s, |j| last[j].as_ref()).expect("begin")
+            };
+            exchanges.push(x);
+        }
+        let outputs: Vec<Option<Output>> = (0..n)
+            .map(|i| (!ended(i)).then(|| agents[i].finish(|j| exchanges[j].as_ref())))
+            .collect();
+        world.act(&outputs.iter().map(Option::as_ref).collect::<Vec<_>>());
+        last = outputs;
+    }
+    world.results()
+}
+
+/// An agent whose process ends (the world departs it and it sends nothing more) is absent
+/// exactly as a departure of `[faults]` at the same step makes it, bit for bit, for every
+/// decentralised kind: its neighbours read its input as zero once it has gone (the engine's
+/// controller sets an absent agent's input to zero; predicting it by the AR model instead
+/// made `rkf-ar` 15 times worse by the end), and the metrics leave out its last report (its
+/// part of `cov_trace` and its per-agent quantities).
+#[test]
+fn an_agent_whose_process_ends_is_a_departure() {
+    let kinds: Vec<String> = Registry::builtin()
+        .names()
+        .into_iter()
+        .filter(|k| !CENTRAL.contains(k))
+        .map(|k| match k {
+            "mmse" => "{ kind = \"mmse\", prior_var = 1e-3 }".to_string(),
+            _ => format!("\"{k}\""),
+        })
+        .collect();
+    let base = format!(
+        "name = \"k\"\nestimators = [{}]\n[framework]\npreset = \"hexagon\"\n\
+         [sim]\ndt = 0.01\nsteps = 300\nruns = 1\nevery = 1\n\
+         [comm.ar]\ncoeffs = [[0.97, 0.98]]\nnoise_var = [0.01, 0.01]\n",
+        kinds.join(", ")
+    );
+    let load = |text: &str| {
+        let spec = edgekf_io::spec_from_toml(text).expect("TOML");
+        Scenario::from_spec(&spec, None).expect("valid")
+    };
+    let departed = load(&format!(
+        "{base}[faults]\ndepartures = [{{ agent = 6, at = 1.01 }}]\n"
+    ));
+    let engine = sim::run(&departed, &Quiet).expect("engine");
+    let agents = lockstep_with_an_ended_agent(&load(&base), 6, 101);
+    assert_same(&engine, &agents, "agent 6 ended at step 101");
 }
 
 #[test]

@@ -112,6 +112,9 @@ struct AgentLane {
     /// Past inputs (newest first), for the AR prediction of a neighbour's lost input.
     hist: Vec<Vec<f64>>,
     ar: Option<ArModel>,
+    /// Which agents were present at step k − 1 (the last sensing's presence): a neighbour
+    /// absent then kept still, so its input `u^j_{k−1}` was zero.
+    was_present: Vec<bool>,
     /// This step's measurement means, prediction increments, true edges (zero: unknown here),
     /// positions (its own row), and the input computed.
     y: Vec<f64>,
@@ -352,6 +355,7 @@ impl AgentLane {
             u: vec![0.0; n * d],
             hist: vec![vec![0.0; n * d]; ar.as_ref().map_or(0, |a| a.order())],
             ar,
+            was_present: vec![true; n],
             y: vec![0.0; deg * d],
             du: vec![0.0; deg * d],
             truth: vec![0.0; deg * d],
@@ -370,6 +374,7 @@ impl AgentLane {
         self.z[id * d..(id + 1) * d].copy_from_slice(&ls.position);
         self.control_truth.clone_from(&ls.truth);
         let p = self.faults.parts_mut();
+        self.was_present.copy_from_slice(p.present);
         p.observed.copy_from_slice(&s.observed);
         p.present.copy_from_slice(&s.present);
         if !s.comm.is_empty() && !p.comm.is_empty() {
@@ -398,6 +403,11 @@ impl AgentLane {
             let got = first_step || msg.is_some();
             if let Some(m) = msg {
                 self.u[j * d..(j + 1) * d].copy_from_slice(&m.u);
+            } else if !first_step && !self.was_present[j] {
+                // Absent at step k − 1 (departed): it kept still, its input was zero — as the
+                // engine's controller sets it for an absent agent, and as its filters then read
+                // it (a departure of `[faults]` and a process that ended give the same bits).
+                self.u[j * d..(j + 1) * d].fill(0.0);
             } else if !first_step {
                 self.predict_input(j, d);
             }

@@ -342,20 +342,30 @@ impl Estimator for Gathered {
         &self.estimates
     }
 
-    fn cov_trace(&self, _s: &Step<'_>, out: &mut [f64]) {
+    /// The sum of the present agents' parts, as the engine's filters give it (a departed
+    /// agent's part is none; its last report stays in `cov` but does not count).
+    fn cov_trace(&self, s: &Step<'_>, out: &mut [f64]) {
         let mut t = 0.0;
-        for c in &self.cov {
-            t += c;
+        for (i, c) in self.cov.iter().enumerate() {
+            if s.faults.present(i, 0) {
+                t += c;
+            }
         }
         out[0] = t;
     }
 
-    fn quantity(&self, name: &str, _s: &Step<'_>, out: &mut [f64]) -> bool {
+    /// Summarised over the present agents, as [`crate::estimate::quantity_of_agents`] does.
+    fn quantity(&self, name: &str, s: &Step<'_>, out: &mut [f64]) -> bool {
         let Some(q) = self.quantities.iter().position(|x| *x == name) else {
             return false;
         };
-        out[0] =
-            AgentStat::of(name).summarise(self.values.iter().map(|v| v.get(q).copied().flatten()));
+        let values = self.values.iter().enumerate().map(|(i, v)| {
+            v.get(q)
+                .copied()
+                .flatten()
+                .filter(|_| s.faults.present(i, 0))
+        });
+        out[0] = AgentStat::of(name).summarise(values);
         true
     }
 }
