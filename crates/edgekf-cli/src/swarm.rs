@@ -236,9 +236,62 @@ fn scenario(path: &Path, over: &Overrides) -> Result<Scenario> {
     }
     let text =
         fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if let crate::io::Kind::Slam = crate::io::kind_of(&text) {
+        bail!(
+            "{}: a SLAM scenario (Guo et al.'s observer) does not run as a swarm: it is simulated as one continuous-time system (RK4); run it with `edgekf run`",
+            path.display()
+        );
+    }
     let mut over = over.clone();
     over.runs = Some(1);
-    crate::load(&path.display().to_string(), &text, path.parent(), &over)
+    let sc = crate::load(&path.display().to_string(), &text, path.parent(), &over)?;
+    if sc.sweep().is_some() {
+        bail!(
+            "{}: key `sweep`: a swarm runs one scenario, not a sweep's values; run the sweep with `edgekf run`, or a swarm of each value's scenario (the sweep's parameter set in a copy without `[sweep]`)",
+            path.display()
+        );
+    }
+    Ok(sc)
+}
+
+/// Seconds a lockstep step of `n` agents takes on this 2-core machine: a power law through
+/// the swarm chapter's two measured rates (N = 10: 1,046–1,084 steps/s; N = 50: 119–164).
+fn lockstep_step_seconds(n: usize) -> f64 {
+    (n as f64 / 10.0).powf(1.26) / 1065.0
+}
+
+/// Refuses a swarm estimated to take longer than `--max-hours` (real time: the period per
+/// step; lockstep: [`lockstep_step_seconds`]), and announces one longer than a minute.
+fn check_swarm_time(sc: &Scenario, timing: &Timing, over: &Overrides) -> Result<()> {
+    let steps = sc.steps() as f64;
+    let (seconds, how) = match timing.mode {
+        ModeArg::Realtime => (
+            steps * timing.period_ms as f64 / 1000.0,
+            format!("{} ms a step in real time", timing.period_ms),
+        ),
+        ModeArg::Lockstep => (
+            steps * lockstep_step_seconds(sc.framework().agents()),
+            "the lockstep rate measured for its size".to_string(),
+        ),
+    };
+    let human = edgekf::sim::cost::human_seconds(seconds);
+    if seconds > over.max_hours * 3600.0 {
+        bail!(
+            "{}: this swarm would take about {human} ({} steps at {how}); the limit is {} h (`--max-hours`, default {} h; raise it to run it anyway). Lower `steps` (`--steps`)",
+            sc.name(),
+            sc.steps(),
+            over.max_hours,
+            crate::DEFAULT_MAX_HOURS
+        );
+    }
+    if seconds > 60.0 {
+        eprintln!(
+            "{}: estimated {human} ({} steps at {how})",
+            sc.name(),
+            sc.steps()
+        );
+    }
+    Ok(())
 }
 
 /// Runs `edgekf agent`.
@@ -268,6 +321,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
     let sc = scenario(&args.scenario, &args.over)?;
     edgekf::agent::Agent::new(&sc, 0, false)
         .with_context(|| args.scenario.display().to_string())?;
+    check_swarm_time(&sc, &args.net.timing, &args.over)?;
     let id = StudyId::new("swarm", sc.name());
     let prep = outdir::prepare(&args.out, &id, args.force, Hint::CLI)?;
     let o = WorldOptions {
@@ -426,6 +480,7 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
     let n = sc.framework().agents();
     edgekf::agent::Agent::new(&sc, 0, false)
         .with_context(|| format!("{}", args.scenario.display()))?;
+    check_swarm_time(&sc, &args.timing, &args.over)?;
     let kills = kill_steps(&args.kill, &sc)?;
     if !args.force {
         // Refused now, before any process starts (the world empties it with --force).
@@ -565,6 +620,10 @@ fn over_args(o: &Overrides) -> Vec<String> {
     if o.allow_divergence {
         a.push("--allow-divergence".into());
     }
+    if o.json {
+        a.push("--json".into());
+    }
+    a.extend(["--max-hours".to_string(), o.max_hours.to_string()]);
     a
 }
 

@@ -181,6 +181,9 @@ fn started_swarm(t: &Scratch, name: &str, extra: &[&str]) -> (Child, PathBuf, St
         "realtime".into(),
         "--period-ms".into(),
         "5".into(),
+        // 2,000,000 steps of 5 ms: 2.8 h, past the default limit of 1 h; it is stopped early.
+        "--max-hours".into(),
+        "3".into(),
     ];
     args.extend(extra.iter().map(|s| s.to_string()));
     let child = Command::new(exe())
@@ -340,6 +343,74 @@ fn crkf_is_refused_by_name() {
     let e = stderr(&o);
     assert!(e.contains("crkf") && e.contains("centralised"), "{e}");
     assert!(!t.join("o").exists());
+}
+
+/// What cannot run as a swarm, or not in the time allowed, is refused before any process
+/// starts, naming the file and the key or flag: a sweep, a SLAM scenario, a swarm longer than
+/// `--max-hours` (the lockstep rate's estimate).
+#[test]
+fn sweeps_slam_and_long_swarms_are_refused_before_starting() {
+    let t = tmp("refused");
+    let sweep = small(
+        "\"rkf\"",
+        "[sweep]\nparameter = \"control.follower_gain\"\nvalues = [1.0, 2.0]\n",
+    );
+    let slam = fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/slam-fig3.toml"
+    ))
+    .unwrap();
+    let cases: [(&str, String, &[&str], &str); 3] = [
+        ("sweep", sweep, &[], "key `sweep`"),
+        ("slam", slam, &[], "SLAM"),
+        (
+            "long",
+            small("\"rkf\"", ""),
+            &["--steps", "100000000"],
+            "`--max-hours`",
+        ),
+    ];
+    for (name, text, flags, says) in cases {
+        let sc = write_scenario(&t, name, &text);
+        let out = t.join(format!("o-{name}"));
+        let mut args = vec![
+            "swarm",
+            sc.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(flags);
+        let o = run(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        // A file's problem names the file; the time names the study and its steps.
+        let names = if name == "long" {
+            "100000000 steps"
+        } else {
+            name
+        };
+        assert!(e.contains(says) && e.contains(names), "{name}: {e}");
+        assert!(!e.contains("ready"), "{name}: no process should start: {e}");
+        assert!(!out.exists(), "{name}: nothing written");
+    }
+}
+
+/// `--json` reaches the world: the summary comes out as JSON, as `run --json` prints it.
+#[test]
+fn json_summary() {
+    let t = tmp("json");
+    let sc = write_scenario(&t, "j", &small("\"rkf\"", ""));
+    let o = run(&[
+        "swarm",
+        sc.to_str().unwrap(),
+        "--out",
+        t.join("o").to_str().unwrap(),
+        "--json",
+    ]);
+    ok(&o);
+    let v: serde_json::Value =
+        serde_json::from_slice(&o.stdout).expect("the summary is JSON on stdout");
+    assert_eq!(v["scenario"], "swarm-cli");
 }
 
 #[test]
