@@ -766,12 +766,25 @@ pub fn simulate(sc: &Scenario, range: std::ops::Range<usize>) -> Result<Results>
     Ok(res?)
 }
 
+/// The environment variable by which `edgekf swarm` tells the world it starts the command the
+/// user typed (a JSON list of strings), for the study's `provenance.json`.
+pub(crate) const INVOKED_AS: &str = "EDGEKF_INVOKED_AS";
+
+/// The command line a study's `provenance.json` records: this process's, or for the world of a
+/// swarm, the `edgekf swarm` command that started it ([`INVOKED_AS`]).
+fn command_line() -> Vec<String> {
+    std::env::var(INVOKED_AS)
+        .ok()
+        .and_then(|v| serde_json::from_str(&v).ok())
+        .unwrap_or_else(|| std::env::args().collect())
+}
+
 /// Stages `provenance.json` (this process's command line, the study, and the list of files
 /// staged), moves every staged file into place, and removes what the previous run of the same
 /// study left that this one did not write again — as one step that Ctrl-C does not cut.
 fn commit(mut st: io::Staged, prep: outdir::Prepared, id: &StudyId) -> Result<()> {
     let mut names = st.names();
-    let prov = outdir::provenance_json(std::env::args().collect(), id, &names);
+    let prov = outdir::provenance_json(command_line(), id, &names);
     st.write("provenance.json", prov.as_bytes())?;
     names.push("provenance.json".into());
     let dir = prep.dir().to_path_buf();

@@ -100,6 +100,16 @@ fn lockstep_swarm_writes_what_run_writes() {
             let y = fs::read(b.join(f)).unwrap();
             assert!(x == y, "{name}: {f} of the swarm differs from edgekf run's");
         }
+        // The provenance is the command typed, not the world's own.
+        let prov: serde_json::Value =
+            serde_json::from_slice(&fs::read(a.join("provenance.json")).unwrap()).unwrap();
+        let command: Vec<&str> = prov["command"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap())
+            .collect();
+        assert_eq!(command[1..4], ["swarm", sc, "--out"], "{command:?}");
         let net = fs::read_to_string(a.join("network.csv")).unwrap();
         assert!(
             net.starts_with("from,to,channel,sent,received,late,lost,"),
