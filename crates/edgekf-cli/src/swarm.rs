@@ -96,6 +96,25 @@ fn seconds(s: &str) -> Result<f64, String> {
 }
 
 impl NetArgs {
+    /// The mesh's hosts and ports fit `n` agents: one host for all or one per agent, and
+    /// every agent's port `MESH_BASE_PORT + i` at most 65535.
+    fn check(&self, n: usize) -> Result<()> {
+        let hosts = self.mesh_hosts.len();
+        if hosts != 1 && hosts != n {
+            bail!(
+                "flag `--mesh-hosts`: {hosts} hosts for {n} agents: give one for all, or one per agent"
+            );
+        }
+        let last = usize::from(self.mesh_base_port) + n - 1;
+        if last > usize::from(u16::MAX) {
+            bail!(
+                "flag `--mesh-base-port`: {} + {n} agents needs ports up to {last}, past 65535",
+                self.mesh_base_port
+            );
+        }
+        Ok(())
+    }
+
     fn endpoints(&self) -> Endpoints {
         Endpoints {
             swarm: self.swarm.clone(),
@@ -300,6 +319,7 @@ fn check_swarm_time(sc: &Scenario, timing: &Timing, over: &Overrides) -> Result<
 /// As [`run_agent`], named.
 pub fn agent(args: &AgentArgs) -> Result<ExitCode> {
     let sc = scenario(&args.scenario, &args.over)?;
+    args.net.check(sc.framework().agents())?;
     let o = AgentOptions {
         id: args.id,
         endpoints: args.net.endpoints(),
@@ -322,6 +342,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
     edgekf::agent::Agent::new(&sc, 0, false)
         .with_context(|| args.scenario.display().to_string())?;
     check_swarm_time(&sc, &args.net.timing, &args.over)?;
+    args.net.check(sc.framework().agents())?;
     let id = StudyId::new("swarm", sc.name());
     let prep = outdir::prepare(&args.out, &id, args.force, Hint::CLI)?;
     let o = WorldOptions {

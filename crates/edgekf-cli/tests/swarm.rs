@@ -405,6 +405,31 @@ fn sweeps_slam_and_long_swarms_are_refused_before_starting() {
     }
 }
 
+/// Mesh flags that cannot fit the scenario's agents are refused before the world listens:
+/// two hosts for ten agents, a base port whose last agent would pass 65535.
+#[test]
+fn mesh_flags_that_do_not_fit_are_refused() {
+    let t = tmp("mesh");
+    let sc = write_scenario(&t, "m", &small("\"rkf\"", ""));
+    let sc = sc.to_str().unwrap();
+    for (flags, says) in [
+        (
+            ["--mesh-hosts", "10.0.0.1,10.0.0.2"],
+            "2 hosts for 10 agents",
+        ),
+        (["--mesh-base-port", "65530"], "needs ports up to 65539"),
+    ] {
+        let out = t.join("o");
+        let mut args = vec!["world", sc, "--out", out.to_str().unwrap()];
+        args.extend(flags);
+        let o = run(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(e.contains(flags[0]) && e.contains(says), "{e}");
+        assert!(!out.exists(), "{e}");
+    }
+}
+
 /// `--json` reaches the world: the summary comes out as JSON, as `run --json` prints it.
 #[test]
 fn json_summary() {
