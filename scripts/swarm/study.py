@@ -11,8 +11,11 @@ agents measured (network.csv).
     sudo python3 scripts/swarm/study.py --edgekf target/release/edgekf \
         --scenario scenarios/thesis-fig6.2.toml --p 25 50 --runs 10 --steps 10000 --window 5 10
 
-Only the first `rkf-ar` estimator of the scenario is kept (with `p_fail` set to p for the
-simulator; the swarm's losses are the network's).
+Only the first `rkf-ar` estimator of the scenario is kept, with `p_fail` set to p: the
+simulator draws its failures with it; the swarm runs with `--comm-failures network`, so its
+losses are the network's alone and `p_fail` is only the filters' model of them. (Until
+2026-12-07 the swarm also drew the scenario's failures, so its filters lost 1 − (1 − p)² of the
+inputs: 44 % at p = 25 %.)
 """
 
 import argparse
@@ -30,18 +33,22 @@ NETNS = os.path.join(HERE, "lossy-netns.sh")
 
 
 def scenario_for(text, p, steps):
-    """The scenario with one rkf-ar estimator at p_fail = p, and `steps` steps."""
+    """The scenario with one rkf-ar estimator at p_fail = p (in %), and `steps` steps."""
     text = re.sub(r"(?ms)^estimators = \[.*?^\]\n", "", text)
     text = re.sub(r"(?ms)^\[\[plots\]\].*", "", text)
-    est = f'estimators = [{{ kind = "rkf-ar", p_fail = {p / 100:.2f}, label = "rkf-ar" }}]\n'
+    est = f'estimators = [{{ kind = "rkf-ar", p_fail = {p / 100:.4f}, label = "rkf-ar" }}]\n'
     text = re.sub(r"(?m)^description = .*$", lambda m: m.group(0) + "\n" + est, text, count=1)
     text = re.sub(r"(?m)^steps = \d+", f"steps = {steps}", text)
     text = re.sub(r"(?m)^runs = \d+", "runs = 1", text)
     return text
 
 
+METRICS = ["est_error", "consistency", "cov_trace"]
+
+
 def window_stats(metrics_csv, window):
-    """(mean est_error, mean ε² / mean cov_trace) over the window [t0, t1] of one run."""
+    """(mean est_error, mean ε² / mean cov_trace, mean cov_trace) over the window [t0, t1] of
+    one run."""
     err, cov = [], []
     with open(metrics_csv) as f:
         for row in csv.DictReader(f):
@@ -53,7 +60,13 @@ def window_stats(metrics_csv, window):
             elif row["metric"] == "cov_trace":
                 cov.append(float(row["mean"]))
     e2 = sum(e * e for e in err) / len(err)
-    return sum(err) / len(err), e2 / (sum(cov) / len(cov))
+    c = sum(cov) / len(cov)
+    return sum(err) / len(err), e2 / c, c
+
+
+def paired(xs, ys):
+    """Mean ± standard error over the pairs of 100 (x / y − 1), in %."""
+    return mean_se([100.0 * (x / y - 1.0) for x, y in zip(xs, ys)])
 
 
 def mean_se(xs):
@@ -100,36 +113,49 @@ def main():
         sc = os.path.join(tmp, f"p{p}.toml")
         with open(sc, "w") as f:
             f.write(scenario_for(base, p, a.steps))
-        swarm, sim, tot = [], [], [0, 0, 0]
+        # The simulator also at 1 − (1 − p)², the loss of a swarm that drew the scenario's
+        # failures on top of the network's: how far the outcomes move with the loss rate.
+        p2 = 100.0 * (1.0 - (1.0 - p / 100.0) ** 2)
+        sc2 = os.path.join(tmp, f"p{p}-twice.toml")
+        with open(sc2, "w") as f:
+            f.write(scenario_for(base, p2, a.steps))
+        swarm, sim, sim2, tot = [], [], [], [0, 0, 0]
         for r in range(a.runs):
             seed = str(a.seed + r)
             out_s = os.path.join(tmp, f"p{p}-swarm-{r}")
             out_r = os.path.join(tmp, f"p{p}-run-{r}")
+            out_2 = os.path.join(tmp, f"p{p}-twice-{r}")
             run([NETNS, str(p), "--", a.edgekf, "swarm", sc, "--out", out_s, "--seed", seed,
-                 "--lossy", "--grace-ms", str(a.grace_ms),
+                 "--lossy", "--grace-ms", str(a.grace_ms), "--comm-failures", "network",
                  "--after-ready", f"{NETNS} --rule {p}"])
             run([a.edgekf, "run", sc, "--out", out_r, "--seed", seed])
+            run([a.edgekf, "run", sc2, "--out", out_2, "--seed", seed])
             swarm.append(window_stats(os.path.join(out_s, "metrics.csv"), a.window))
             sim.append(window_stats(os.path.join(out_r, "metrics.csv"), a.window))
+            sim2.append(window_stats(os.path.join(out_2, "metrics.csv"), a.window))
             for i, v in enumerate(loss_of(os.path.join(out_s, "network.csv"))):
                 tot[i] += v
             print(f"p = {p} %, run {r}: swarm {swarm[-1]}, simulator {sim[-1]}", file=sys.stderr)
         row = {}
-        for name, i in [("est_error", 0), ("consistency", 1)]:
-            ms, ss = mean_se([x[i] for x in swarm])
-            mr, sr = mean_se([x[i] for x in sim])
-            row[name] = {"swarm": [ms, ss], "simulator": [mr, sr], "z": (ms - mr) / math.hypot(ss, sr)}
+        for i, name in enumerate(METRICS):
+            xs, ys, zs = ([x[i] for x in v] for v in (swarm, sim, sim2))
+            ms, ss = mean_se(xs)
+            mr, sr = mean_se(ys)
+            row[name] = {"swarm": [ms, ss], "simulator": [mr, sr], "z": (ms - mr) / math.hypot(ss, sr),
+                         "paired_pct": paired(xs, ys), "simulator_at_p2_paired_pct": paired(zs, ys)}
         sent, missing, lost = tot
         q = missing / sent
         row["loss"] = {"sent": sent, "not_received": missing, "lost_to_filters": lost,
-                       "rate": q, "binomial_se": math.sqrt(q * (1 - q) / sent)}
+                       "rate": q, "binomial_se": math.sqrt(q * (1 - q) / sent), "p2": p2}
         results[str(p)] = row
         print(f"p = {p} %: network loss {100 * q:.2f} ± {100 * row['loss']['binomial_se']:.2f} % "
               f"of {sent} inputs ({lost} lost to the filters)")
-        for name in ["est_error", "consistency"]:
+        for name in METRICS:
             s, m = row[name]["swarm"], row[name]["simulator"]
-            print(f"  {name}: swarm {s[0]:.4f} ± {s[1]:.4f}, simulator {m[0]:.4f} ± {m[1]:.4f}, "
-                  f"difference {row[name]['z']:+.2f} SE")
+            d, d2 = row[name]["paired_pct"], row[name]["simulator_at_p2_paired_pct"]
+            print(f"  {name}: swarm {s[0]:.5g} ± {s[1]:.2g}, simulator {m[0]:.5g} ± {m[1]:.2g}, "
+                  f"difference {row[name]['z']:+.2f} SE; paired {d[0]:+.3f} ± {d[1]:.3f} %; "
+                  f"simulator at {p2:.2f} % against {p} %: {d2[0]:+.3f} ± {d2[1]:.3f} %")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(results, f, indent=2)

@@ -36,6 +36,17 @@ pub enum ModeArg {
     Realtime,
 }
 
+/// Where a swarm's communication failures come from.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommFailures {
+    /// The world draws each link's failures with the scenario's `p_fail`, as `edgekf run`
+    /// does (the same uniforms); a lossy network loses messages on top of them.
+    Drawn,
+    /// The world draws none: the messages the network loses (or delivers late) are the only
+    /// failures, and `p_fail` is only the filters' model of them (a study of real loss).
+    Network,
+}
+
 /// Where the processes meet and how they wait (the same for every process of a swarm).
 #[derive(Args, Debug, Clone)]
 pub struct NetArgs {
@@ -192,13 +203,18 @@ pub struct WorldArgs {
     /// Output directory: the files of `edgekf run`, and network.csv.
     #[arg(long)]
     pub out: PathBuf,
-    /// Empty the output directory first when it holds files of another study.
+    /// Replace the output directory's contents when it holds files of another study (once the
+    /// new files are in place: an interrupted swarm leaves the old ones).
     #[arg(long)]
     pub force: bool,
     /// A shell command run once every agent is ready, before the first step (e.g. an nftables
     /// rule that makes the mesh lossy: see docs/agents.md, "Real packet loss").
     #[arg(long)]
     pub after_ready: Option<String>,
+    /// Where the filters' communication failures come from (see docs/agents.md, "How the
+    /// network's loss maps onto P_fail").
+    #[arg(long, value_enum, default_value = "drawn")]
+    pub comm_failures: CommFailures,
     /// Print `progress K` on stdout after every step (for `edgekf swarm`).
     #[arg(long, hide = true)]
     pub progress_lines: bool,
@@ -216,7 +232,8 @@ pub struct SwarmArgs {
     /// Output directory: the files of `edgekf run --runs 1`, and network.csv.
     #[arg(long)]
     pub out: PathBuf,
-    /// Empty the output directory first when it holds files of another study.
+    /// Replace the output directory's contents when it holds files of another study (once the
+    /// new files are in place: an interrupted swarm leaves the old ones).
     #[arg(long)]
     pub force: bool,
     /// SIGKILL agent AGENT's process at simulated time SECONDS (repeatable), e.g. `--kill 3@5`.
@@ -228,6 +245,11 @@ pub struct SwarmArgs {
     /// Also write report.html.
     #[arg(long)]
     pub report: bool,
+    /// Where the filters' communication failures come from: the scenario's `p_fail` drawn by
+    /// the world (as `edgekf run`), or only the network's losses (with `--lossy`, for a study of
+    /// real loss; `p_fail` is then the filters' model only).
+    #[arg(long, value_enum, default_value = "drawn")]
+    pub comm_failures: CommFailures,
     #[command(flatten)]
     pub timing: Timing,
     /// A Zenoh configuration file (JSON5) for every process.
@@ -351,6 +373,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
         live: args.net.live(),
         timeout: Duration::from_secs_f64(args.net.timing.timeout_s),
         after_ready: args.after_ready.clone(),
+        drawn_failures: args.comm_failures == CommFailures::Drawn,
     };
     let lines = args.progress_lines;
     let mut on_step = |k: usize| {
@@ -478,6 +501,9 @@ fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child
 fn tail(log: &Path) -> String {
     let text = fs::read_to_string(log).unwrap_or_default();
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    if lines.is_empty() {
+        return "(it wrote no message)".into();
+    }
     lines[lines.len().saturating_sub(3)..].join("\n  ")
 }
 
@@ -507,7 +533,7 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
     check_swarm_time(&sc, &args.timing, &args.over)?;
     let kills = kill_steps(&args.kill, &sc)?;
     if !args.force {
-        // Refused now, before any process starts (the world empties it with --force).
+        // Refused now, before any process starts (with --force the world replaces it at the end).
         let _unchanged = outdir::prepare(
             &args.out,
             &StudyId::new("swarm", sc.name()),
@@ -599,6 +625,9 @@ fn child_args(args: &SwarmArgs, n: usize) -> Result<(Vec<String>, Vec<Vec<String
     }
     if let Some(cmd) = &args.after_ready {
         world.extend(["--after-ready".into(), cmd.clone()]);
+    }
+    if args.comm_failures == CommFailures::Network {
+        world.extend(["--comm-failures".into(), "network".into()]);
     }
     world.extend(common.clone());
     let agents = (0..n)
@@ -709,6 +738,12 @@ fn supervise(
                 bail!("{}", failure(agents, logs));
             }
         }
+        if !live {
+            if let Some(msg) = ended_early(agents, logs) {
+                let _ = world.kill();
+                bail!("{msg}");
+            }
+        }
         if last_sample.elapsed() > Duration::from_millis(500) {
             last_sample = Instant::now();
             for (i, a) in agents.iter().enumerate() {
@@ -718,6 +753,20 @@ fn supervise(
             }
         }
     }
+}
+
+/// In a swarm that is not live, an agent that failed before the world ended (a crash,
+/// `kill -9`): the world would wait `--timeout-s` for its output and then fail, so the swarm
+/// ends now, naming it. (An agent that exits with success was told to stop: the world is
+/// writing its outputs.)
+fn ended_early(agents: &mut [Option<Child>], logs: &Path) -> Option<String> {
+    agents.iter_mut().enumerate().find_map(|(i, a)| {
+        let s = a.as_mut()?.try_wait().ok()??;
+        (!s.success()).then(|| format!(
+            "agent {i} ended before the swarm did ({s}):\n  {}\na swarm without --live needs every agent to the last step; with --live (or --lossy, --mode realtime, --kill) an agent that ends is a departure",
+            tail(&logs.join(format!("agent-{i}.log")))
+        ))
+    })
 }
 
 /// The agents end after the world's stop; one that fails is named (in a live swarm, one

@@ -123,6 +123,46 @@ fn lockstep_swarm_writes_what_run_writes() {
     }
 }
 
+/// `--comm-failures network`: the world draws no link failures, so on a mesh that loses nothing
+/// the filters of a scenario at `p_fail = 0.3` hear every input — `edgekf run` at a `p_fail`
+/// no uniform falls below, bit for bit. With the default (`drawn`) the world's draws apply, and
+/// the two swarms differ.
+#[test]
+fn comm_failures_from_the_network_only() {
+    let t = tmp("comm-failures");
+    let est = |p: &str| format!("{{ kind = \"rkf-ar\", p_fail = {p} }}");
+    let sc = write_scenario(&t, "p30", &small(&est("0.3"), AR));
+    let never = write_scenario(&t, "never", &small(&est("1e-300"), AR));
+    let sc = sc.to_str().unwrap();
+    let [network, drawn, run_never] = ["network", "drawn", "run"].map(|n| t.join(n));
+    ok(&run(&[
+        "swarm",
+        sc,
+        "--out",
+        network.to_str().unwrap(),
+        "--comm-failures",
+        "network",
+    ]));
+    ok(&run(&["swarm", sc, "--out", drawn.to_str().unwrap()]));
+    ok(&run(&[
+        "run",
+        never.to_str().unwrap(),
+        "--runs",
+        "1",
+        "--out",
+        run_never.to_str().unwrap(),
+    ]));
+    let metrics = |d: &Path| fs::read(d.join("metrics.csv")).unwrap();
+    assert!(
+        metrics(&network) == metrics(&run_never),
+        "a swarm without drawn failures differs from edgekf run without failures"
+    );
+    assert!(
+        metrics(&network) != metrics(&drawn),
+        "the world's drawn failures changed nothing"
+    );
+}
+
 fn departed_rows(dir: &Path) -> Vec<String> {
     fs::read_to_string(dir.join("status.csv"))
         .unwrap()
@@ -245,24 +285,22 @@ fn ctrl_c_stops_every_process_and_leaves_no_output() {
     assert!(!out.exists(), "{} was left behind", out.display());
 }
 
-#[test]
-fn kill_9_from_outside_is_a_departure() {
-    let t = tmp("kill9");
-    let text = small("\"rkf\", \"rkf-ar\"", AR).replace("steps = 150", "steps = 1500");
-    let sc = write_scenario(&t, "k9", &text);
-    let out = t.join("out");
+/// Starts `edgekf swarm SC --out OUT FLAGS`, and once it steps (its line on stderr) and a little
+/// later, `kill -9` agent 4's process. Returns the swarm's end, the time from its launch and the
+/// time from the kill.
+fn swarm_with_agent_4_killed(
+    sc: &Path,
+    out: &Path,
+    flags: &[&str],
+) -> (Output, Duration, Duration) {
     let mut child = Command::new(exe())
         .args([
             "swarm",
             sc.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
-            "--mode",
-            "realtime",
-            "--period-ms",
-            "2",
         ])
-        .args(PATIENT)
+        .args(flags)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -280,7 +318,6 @@ fn kill_9_from_outside_is_a_departure() {
         );
         std::thread::sleep(Duration::from_millis(20));
     };
-    // Once the swarm steps (its line on stderr), and a little later:
     let mut err = BufReader::new(child.stderr.take().unwrap());
     let mut line = String::new();
     while !line.contains("stepping") {
@@ -295,6 +332,7 @@ fn kill_9_from_outside_is_a_departure() {
         .args(["-9", &pid.to_string()])
         .status()
         .unwrap();
+    let killed = Instant::now();
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
     let status = child.wait().unwrap();
@@ -303,6 +341,24 @@ fn kill_9_from_outside_is_a_departure() {
         stdout: Vec::new(),
         stderr: rest.into_bytes(),
     };
+    (o, launched.elapsed(), killed.elapsed())
+}
+
+#[test]
+fn kill_9_from_outside_is_a_departure() {
+    let t = tmp("kill9");
+    let text = small("\"rkf\", \"rkf-ar\"", AR).replace("steps = 150", "steps = 1500");
+    let sc = write_scenario(&t, "k9", &text);
+    let out = t.join("out");
+    let flags = [
+        "--mode",
+        "realtime",
+        "--period-ms",
+        "2",
+        PATIENT[0],
+        PATIENT[1],
+    ];
+    let (o, launched, _) = swarm_with_agent_4_killed(&sc, &out, &flags);
     assert!(
         o.status.success(),
         "the swarm failed after a departure: {}",
@@ -310,14 +366,31 @@ fn kill_9_from_outside_is_a_departure() {
     );
     // Real time is a fixed clock: 1,500 steps of 2 ms take at least 3 s, however fast the
     // agents answer.
-    assert!(
-        launched.elapsed() >= Duration::from_secs(3),
-        "{:?}",
-        launched.elapsed()
-    );
+    assert!(launched >= Duration::from_secs(3), "{launched:?}");
     let rows = departed_rows(&out);
     assert_eq!(rows.len(), 1, "{rows:?}");
     assert!(rows[0].starts_with("agent:4,departed,"), "{rows:?}");
+}
+
+/// A lockstep swarm that is not live needs every agent: one killed from outside ends it at
+/// once (not after `--timeout-s`), naming the agent and `--live`, and nothing is written.
+#[test]
+fn kill_9_in_a_swarm_that_is_not_live_ends_it_at_once() {
+    let t = tmp("kill9-lockstep");
+    let text = small("\"rkf\"", "").replace("steps = 150", "steps = 2000000");
+    let sc = write_scenario(&t, "k9l", &text);
+    let out = t.join("out");
+    let flags = ["--timeout-s", "120", "--max-hours", "3"];
+    let (o, _, since_kill) = swarm_with_agent_4_killed(&sc, &out, &flags);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(since_kill < Duration::from_secs(20), "{since_kill:?}: {e}");
+    assert!(
+        e.contains("agent 4 ended before the swarm did") && e.contains("--live"),
+        "{e}"
+    );
+    assert!(!e.contains("\n  \n"), "an empty line: {e:?}");
+    assert!(!out.exists(), "{} was written", out.display());
 }
 
 #[test]

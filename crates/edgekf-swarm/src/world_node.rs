@@ -35,6 +35,9 @@ pub struct WorldOptions {
     /// A shell command run once every agent is ready, before the first step (e.g. an nftables
     /// rule that makes the mesh lossy).
     pub after_ready: Option<String>,
+    /// The world draws the links' failures with the scenario's `p_fail`, as `edgekf run` does;
+    /// when false it sends none, and the messages the network loses are the only failures.
+    pub drawn_failures: bool,
 }
 
 /// How an agent left.
@@ -309,7 +312,11 @@ impl Node<'_> {
                 self.wait_until(start + period * (k as u32 - 1), |_| false)?;
             }
             self.depart_ended(&mut world, k, &mut departures);
-            let sensing = world.sense();
+            let mut sensing = world.sense();
+            if !self.o.drawn_failures {
+                // An agent given no draws loses only what its network loses.
+                sensing.iter_mut().for_each(|s| s.comm.clear());
+            }
             let expected: Vec<usize> = (0..self.n)
                 .filter(|&i| world.present(i) && !self.gone.contains(&i))
                 .collect();

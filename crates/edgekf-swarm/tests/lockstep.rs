@@ -64,6 +64,7 @@ fn swarm(sc: &Scenario, tag: &str) -> edgekf_swarm::world_node::WorldOutcome {
             live: false,
             timeout,
             after_ready: None,
+            drawn_failures: true,
         };
         let out = run_world(sc, &o, &mut |_| {}).expect("world");
         for a in agents {

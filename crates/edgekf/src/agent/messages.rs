@@ -22,7 +22,8 @@ pub struct Sensing {
     /// Per edge `(i, j)` of agent i, in incidence order: whether its measurement arrived.
     pub observed: Vec<bool>,
     /// Per edge of agent i: the chapter 6 link-failure uniform (empty unless the scenario's
-    /// estimators simulate those failures).
+    /// estimators simulate those failures and the world draws them; empty, no message is lost
+    /// but those the network loses).
     pub comm: Vec<f64>,
     /// Per agent of the formation: whether it is present.
     pub present: Vec<bool>,
