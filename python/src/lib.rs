@@ -455,7 +455,8 @@ impl PyRes {
     /// `summary.csv` and `sweep_metrics.csv`, `provenance.json` (with `command`) and, when
     /// `figures`, the scenario's figures.
     /// The folder must be new, empty, or hold this same study (its `provenance.json` names
-    /// it); with `force` it is emptied first (`edgekf_io::outdir`).
+    /// it); with `force` its old contents are replaced once the new files are in place
+    /// (`edgekf_io::outdir`).
     #[pyo3(signature = (dir, command, figures=true, force=false))]
     fn save(&self, dir: PathBuf, command: Vec<String>, figures: bool, force: bool) -> PyResult<()> {
         use edgekf_io::outdir;

@@ -124,14 +124,16 @@ def test_save_never_mixes_two_studies(tmp_path, small):
     assert sorted(p.name for p in out.iterdir()) == prov["files"]
     # The same study again: fine.
     res.save(out, figures=False)
-    # Another study: refused by name; force=True empties the folder first.
+    # Another study: refused by name; force=True replaces the folder's contents.
     other = tmp_path / "other.toml"
     other.write_text(SMALL.replace('name = "small"', 'name = "other"'))
     res2 = edgekf.run(other, runs=2, steps=30)
     with pytest.raises(FileExistsError, match="`small`.*`other`.*force=True"):
         res2.save(out, figures=False)
     res2.save(out, figures=False, force=True)
-    assert json.loads((out / "provenance.json").read_text())["name"] == "other"
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["name"] == "other"
+    assert sorted(p.name for p in out.iterdir()) == prov["files"]
 
 
 def test_a_study_or_design_past_the_limits_is_refused_before_it_starts(small):

@@ -144,7 +144,8 @@ pub struct DesignArgs {
     /// Output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
-    /// Empty the output directory first when it holds files of another study or design.
+    /// Replace the output directory's contents when it holds files of another study or design
+    /// (once the new files are in place).
     #[arg(long)]
     pub force: bool,
     /// Refuse a design estimated to take longer than this many hours (the estimate is checked

@@ -1,5 +1,6 @@
-//! Ctrl-C (SIGINT): one line on stderr saying what was and was not written, and exit code 130,
-//! within moments in every phase of a command (loading, simulating, designing, writing).
+//! Ctrl-C (SIGINT) or SIGTERM: one line on stderr saying what was and was not written, and exit
+//! code 130 (143 for SIGTERM), within moments in every phase of a command (loading, simulating,
+//! designing, writing).
 //!
 //! The signal handler only writes a byte to a pipe (async-signal-safe). A watcher thread waits
 //! on the pipe; on a signal it takes the lock that every commit holds (so a directory whose
@@ -46,10 +47,10 @@ fn log() -> std::sync::MutexGuard<'static, Log> {
     LOG.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-extern "C" fn on_sigint(_: libc::c_int) {
+extern "C" fn on_signal(signal: libc::c_int) {
     let fd = WRITE_FD.load(Ordering::Relaxed);
     if fd >= 0 {
-        let b = 1u8;
+        let b = signal as u8;
         // SAFETY: write(2) is async-signal-safe; the buffer is one valid byte.
         unsafe {
             libc::write(fd, (&b as *const u8).cast(), 1);
@@ -82,10 +83,11 @@ pub fn install() {
     // SAFETY: a zeroed sigaction with an extern "C" handler that only calls write(2).
     unsafe {
         let mut sa: libc::sigaction = std::mem::zeroed();
-        sa.sa_sigaction = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        sa.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
         sa.sa_flags = libc::SA_RESTART;
         libc::sigemptyset(&mut sa.sa_mask);
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
+        libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
     }
 }
 
@@ -149,7 +151,12 @@ fn watch(fd: libc::c_int) {
     } else {
         ""
     };
-    let msg = format!("{lead}edgekf: interrupted (Ctrl-C): {line}\n");
+    let (how, code) = if libc::c_int::from(b) == libc::SIGTERM {
+        ("terminated (SIGTERM)", 128 + libc::SIGTERM)
+    } else {
+        ("interrupted (Ctrl-C)", 130)
+    };
+    let msg = format!("{lead}edgekf: {how}: {line}\n");
     // Another thread may be half-way through an `eprintln!` ("wrote DIR" without its newline
     // yet: stderr is unbuffered, one line is several writes): its lock, held until the exit,
     // makes this line start a line of its own.
@@ -158,7 +165,7 @@ fn watch(fd: libc::c_int) {
     // other threads may be anywhere).
     unsafe {
         libc::write(2, msg.as_ptr().cast(), msg.len());
-        libc::_exit(130);
+        libc::_exit(code);
     }
 }
 

@@ -69,9 +69,10 @@ enum Command {
         /// partial results for `edgekf merge`.
         #[arg(long, value_parser = parse_shard)]
         shard: Option<(usize, usize)>,
-        /// Empty the output directory first when it holds files of another study (outputs never
-        /// mix: without it such a directory is refused; a re-run of the same study replaces
-        /// its files).
+        /// Replace the output directory's contents when it holds files of another study (outputs
+        /// never mix: without it such a directory is refused; a re-run of the same study replaces
+        /// its files). The old files go once the new ones are in place: an interrupted run
+        /// leaves them.
         #[arg(long)]
         force: bool,
         #[command(flatten)]
@@ -89,7 +90,8 @@ enum Command {
         /// Print the summary as JSON.
         #[arg(long)]
         json: bool,
-        /// Empty the output directory first when it holds files of another study.
+        /// Replace the output directory's contents when it holds files of another study (once the
+        /// new files are in place: an interrupted run leaves the old ones).
         #[arg(long)]
         force: bool,
     },
@@ -107,7 +109,8 @@ enum Command {
         /// `index.html` (see `edgekf report`).
         #[arg(long)]
         report: bool,
-        /// Empty each simulation's directory first when it holds files of another study.
+        /// Replace each simulation's directory's contents when it holds files of another study
+        /// (once its new files are in place).
         #[arg(long)]
         force: bool,
         #[command(flatten)]

@@ -122,13 +122,62 @@ fn check_outcome(status: ExitStatus, stderr: &str, out: &Path) -> &'static str {
     }
 }
 
-/// One Ctrl-C while the study simulates: exit 130 and one line, nothing written.
+/// One Ctrl-C (or SIGTERM) while the study simulates: exit 130 (143) and one line, nothing
+/// written.
 #[test]
 fn ctrl_c_during_a_run_says_nothing_was_written() {
-    let dir = tmp("one");
-    let sc = dir.join("s.toml");
-    // Long enough to be announced ("estimated …", printed before the simulation starts) and
-    // to be still running when the signal lands.
+    for (signal, code, how) in [
+        (libc::SIGINT, 130, "interrupted (Ctrl-C)"),
+        (libc::SIGTERM, 143, "terminated (SIGTERM)"),
+    ] {
+        let dir = tmp(&format!("one-{signal}"));
+        let sc = dir.join("s.toml");
+        // Long enough to be announced ("estimated …", printed before the simulation starts)
+        // and to be still running when the signal lands.
+        fs::write(
+            &sc,
+            SCENARIO
+                .replace("steps = 300", "steps = 50000000")
+                .replace("every = 4", "every = 1000000"),
+        )
+        .unwrap();
+        let out = dir.join("out");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_edgekf"))
+            .args(["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starts");
+        let mut err = BufReader::new(child.stderr.take().unwrap());
+        let mut line = String::new();
+        err.read_line(&mut line).unwrap();
+        assert!(line.contains("estimated"), "{line}");
+        let sent = Instant::now();
+        // SAFETY: kill(2) on a child we started and have not reaped.
+        unsafe {
+            libc::kill(child.id() as libc::pid_t, signal);
+        }
+        let status = wait_for(&mut child, Duration::from_secs(2)).expect("ends within 2 s");
+        assert!(sent.elapsed() < Duration::from_secs(2));
+        let mut rest = String::new();
+        err.read_to_string(&mut rest).unwrap();
+        assert_eq!(status.code(), Some(code), "{rest}");
+        assert_eq!(
+            rest.trim_end(),
+            format!("edgekf: {how}: nothing was written")
+        );
+        assert!(visible(&out).is_empty() && !out.exists());
+    }
+}
+
+/// `--force` over another study, then Ctrl-C while simulating: the old study is still there,
+/// whole, as the line "nothing was written" implies (the old files go only once the new ones
+/// are in place).
+#[test]
+fn ctrl_c_after_force_leaves_the_old_study() {
+    let dir = tmp("force");
+    let (old, sc) = (dir.join("old.toml"), dir.join("s.toml"));
+    fs::write(&old, SCENARIO.replace("\"ctrl-c\"", "\"old\"")).unwrap();
     fs::write(
         &sc,
         SCENARIO
@@ -137,8 +186,19 @@ fn ctrl_c_during_a_run_says_nothing_was_written() {
     )
     .unwrap();
     let out = dir.join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_edgekf"))
+    let exe = env!("CARGO_BIN_EXE_edgekf");
+    let first = Command::new(exe)
+        .args(["run", old.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(first.status.success());
+    let before: Vec<(String, Vec<u8>)> = visible(&out)
+        .into_iter()
+        .map(|f| (f.clone(), fs::read(out.join(&f)).unwrap()))
+        .collect();
+    let mut child = Command::new(exe)
         .args(["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .arg("--force")
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -147,18 +207,21 @@ fn ctrl_c_during_a_run_says_nothing_was_written() {
     let mut line = String::new();
     err.read_line(&mut line).unwrap();
     assert!(line.contains("estimated"), "{line}");
-    let sent = Instant::now();
     sigint(&child);
     let status = wait_for(&mut child, Duration::from_secs(2)).expect("ends within 2 s");
-    assert!(sent.elapsed() < Duration::from_secs(2));
     let mut rest = String::new();
     err.read_to_string(&mut rest).unwrap();
     assert_eq!(status.code(), Some(130), "{rest}");
-    assert_eq!(
-        rest.trim_end(),
-        "edgekf: interrupted (Ctrl-C): nothing was written"
+    assert!(rest.ends_with("nothing was written\n"), "{rest}");
+    let after: Vec<(String, Vec<u8>)> = visible(&out)
+        .into_iter()
+        .map(|f| (f.clone(), fs::read(out.join(&f)).unwrap()))
+        .collect();
+    assert!(
+        after == before,
+        "the old study changed: {:?}",
+        visible(&out)
     );
-    assert!(visible(&out).is_empty() && !out.exists());
 }
 
 /// A few hundred signals at random moments of short runs (start, loading, simulating, writing

@@ -191,6 +191,9 @@ impl OutDirError {
 pub struct Prepared {
     dir: PathBuf,
     old: Vec<String>,
+    /// `force` on a directory that held anything: at [`Prepared::finish`] everything in it but
+    /// the new files goes (not before, so an interrupted run leaves the old study whole).
+    forced: bool,
 }
 
 impl Prepared {
@@ -200,11 +203,15 @@ impl Prepared {
     }
 
     /// After the new files are in place (`written`: their names): removes the previous run's
-    /// files that were not written again, and the derived files ([`DERIVED`]).
+    /// files that were not written again, and the derived files ([`DERIVED`]); with `force`,
+    /// everything else in the directory (but other processes' staging directories).
     ///
     /// # Errors
     /// A file that cannot be removed.
     pub fn finish(self, written: &[String]) -> Result<(), OutDirError> {
+        if self.forced {
+            return remove_all_but(&self.dir, written);
+        }
         let stale = self
             .old
             .iter()
@@ -305,6 +312,7 @@ pub fn prepare(
     let prepared = Prepared {
         dir: dir.to_path_buf(),
         old: Vec::new(),
+        forced: false,
     };
     let shown = dir.display().to_string();
     match fs::metadata(dir) {
@@ -329,8 +337,11 @@ pub fn prepare(
         return Ok(prepared);
     }
     if force {
-        empty(dir, hint)?;
-        return Ok(prepared);
+        check_emptiable(dir, hint)?;
+        return Ok(Prepared {
+            forced: true,
+            ..prepared
+        });
     }
     let want = study.to_string();
     match provenance(dir) {
@@ -366,6 +377,7 @@ pub fn prepare(
             Ok(Prepared {
                 dir: dir.to_path_buf(),
                 old: p.files,
+                forced: false,
             })
         }
         None => {
@@ -468,6 +480,12 @@ pub fn prepare_root(dir: &Path, force: bool, hint: Hint) -> Result<(), OutDirErr
 /// Removes everything in `dir` (not `dir` itself); refused when `dir` holds the current
 /// directory or is the home directory.
 fn empty(dir: &Path, hint: Hint) -> Result<(), OutDirError> {
+    check_emptiable(dir, hint)?;
+    remove_all_but(dir, &[])
+}
+
+/// Refuses to empty `dir` when it holds the current directory or is the home directory.
+fn check_emptiable(dir: &Path, hint: Hint) -> Result<(), OutDirError> {
     let shown = dir.display().to_string();
     let canon = fs::canonicalize(dir).map_err(|source| OutDirError::Io {
         dir: shown.clone(),
@@ -496,12 +514,23 @@ fn empty(dir: &Path, hint: Hint) -> Result<(), OutDirError> {
             force: hint.force,
         });
     }
+    Ok(())
+}
+
+/// Removes everything in `dir` but the entries named in `keep` and the staging directories
+/// of processes writing there (`.edgekf-staging-PID`).
+fn remove_all_but(dir: &Path, keep: &[String]) -> Result<(), OutDirError> {
     let rd = fs::read_dir(dir).map_err(|source| OutDirError::Io {
-        dir: shown.clone(),
+        dir: dir.display().to_string(),
         action: "list",
         source,
     })?;
     for d in rd.filter_map(|d| d.ok()) {
+        let name = d.file_name();
+        let name = name.to_string_lossy();
+        if keep.iter().any(|k| *k == name) || name.starts_with(".edgekf-staging-") {
+            continue;
+        }
         let p = d.path();
         let r = if d.file_type().is_ok_and(|t| t.is_dir()) {
             fs::remove_dir_all(&p)
@@ -588,9 +617,25 @@ mod tests {
         fs::write(d.join("notes.txt"), "mine").unwrap();
         let m = prepare(&d, &a, false, Hint::CLI).unwrap_err().to_string();
         assert!(m.contains("`notes.txt`"), "{m}");
-        // --force empties it.
-        let _ = prepare(&d, &StudyId::study("other"), true, Hint::CLI).unwrap();
-        assert!(fs::read_dir(&d).unwrap().next().is_none());
+        // --force replaces it, once the new files are in place: a run that stops before
+        // (the Prepared dropped unfinished) leaves the old study whole.
+        let before = entries(&d).unwrap();
+        drop(prepare(&d, &StudyId::study("other"), true, Hint::CLI).unwrap());
+        assert_eq!(entries(&d).unwrap(), before);
+        let p = prepare(&d, &StudyId::study("other"), true, Hint::CLI).unwrap();
+        fs::create_dir(d.join(".edgekf-staging-1")).unwrap();
+        fs::create_dir(d.join("sub")).unwrap();
+        fs::write(d.join("new.csv"), "n").unwrap();
+        p.finish(&["new.csv".into()]).unwrap();
+        assert_eq!(
+            fs::read_dir(&d).unwrap().count(),
+            2,
+            "{:?}",
+            entries(&d).unwrap()
+        );
+        assert_eq!(fs::read_to_string(d.join("new.csv")).unwrap(), "n");
+        fs::remove_file(d.join("new.csv")).unwrap();
+        fs::remove_dir(d.join(".edgekf-staging-1")).unwrap();
         // A directory without provenance: refused.
         fs::write(d.join("a.png"), "x").unwrap();
         let m = prepare(&d, &a, false, Hint::CLI).unwrap_err().to_string();
