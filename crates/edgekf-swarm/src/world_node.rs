@@ -262,10 +262,18 @@ impl Node<'_> {
             let unready: Vec<usize> = (0..n)
                 .filter(|i| ever_alive.contains(i) && !ready.contains(i))
                 .collect();
+            // Connected, then gone: the cause, where the others only waited for them.
+            let left: Vec<usize> = unready
+                .iter()
+                .copied()
+                .filter(|i| !g.state.alive.contains(i))
+                .collect();
             let what = if unseen.len() == n {
                 format!("world: no agent connected to {}", self.o.endpoints.world)
             } else if !unseen.is_empty() {
                 format!("world: agents {unseen:?} never connected")
+            } else if !left.is_empty() {
+                format!("world: agents {left:?} connected and then ended before they were ready (an agent ends on a world of another scenario, or on an error of its own: see its output); the others waited to hear them")
             } else {
                 format!("world: agents {unready:?} connected but did not get ready (they wait to hear every neighbour on the mesh)")
             };
