@@ -127,6 +127,52 @@ fn unknown_key_is_named() {
     assert!(err.contains("sigma_vv"), "{err}");
 }
 
+/// A panels plot's wrong keys, each named with what is wrong.
+#[test]
+fn panel_plot_mistakes_are_named() {
+    for (plot, key, says) in [
+        ("rows = [[]]", "rows", "needs at least one row of metrics"),
+        (
+            "rows = [[\"est_error\", \"est_error\"]]",
+            "rows",
+            "`est_error` is listed twice",
+        ),
+        ("rows = [[\"speed\"]]", "rows", "unknown metric `speed`"),
+        (
+            "rows = [[\"est_error\"]]\ncolumns = \"many\"",
+            "columns",
+            "must be \"single\" or \"points\"",
+        ),
+        (
+            "rows = [[\"est_error\"]]\nseries = \"x\"",
+            "series",
+            "must be \"estimators\" or \"points\"",
+        ),
+        (
+            "rows = [[\"est_error\"]]\nband = \"wide\"",
+            "band",
+            "must be \"std\", \"min-max\" or \"none\"",
+        ),
+        (
+            "rows = [[\"est_error\"]]\nband = \"min-max\"",
+            "band",
+            "unknown metric `est_error_min`",
+        ),
+        (
+            "rows = [[\"est_error\"]]\ncolumns = \"points\"",
+            "columns",
+            "needs a [sweep]",
+        ),
+    ] {
+        let text = format!("{SQUARE}\n[[plots]]\nfile = \"p\"\nkind = \"panels\"\n{plot}\n");
+        let err = fails("panels", &text, &[]);
+        assert!(
+            err.contains(&format!("key `plots[0].{key}`")) && err.contains(says),
+            "{plot}: {err}"
+        );
+    }
+}
+
 #[test]
 fn wrong_dimension_is_named() {
     let err = fails(

@@ -443,55 +443,10 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
             window: w,
             ..
         } => {
-            if rows.is_empty() || rows.iter().any(Vec::is_empty) {
-                return Err(err(
-                    &format!("{key}.rows"),
-                    "needs at least one row of metrics",
-                ));
-            }
-            // Each metric once: a panel per metric is bounded by the metrics there are (a
-            // metric repeated 500 times drew 500 panels for a minute).
-            let mut seen: Vec<&str> = Vec::new();
-            for m in rows.iter().flatten() {
-                if seen.contains(&m.as_str()) {
-                    return Err(err(
-                        &format!("{key}.rows"),
-                        format!("`{m}` is listed twice; list each metric once"),
-                    ));
-                }
-                seen.push(m);
-                known(sc, &format!("{key}.rows"), m)?;
-                if band == "min-max" {
-                    known(sc, &format!("{key}.band"), &format!("{m}_min"))?;
-                    known(sc, &format!("{key}.band"), &format!("{m}_max"))?;
-                }
-                if columns == "points" || series == "points" {
-                    in_series(sc, &format!("{key}.rows"), m)?;
-                    if band == "min-max" {
-                        in_series(sc, &format!("{key}.band"), &format!("{m}_min"))?;
-                        in_series(sc, &format!("{key}.band"), &format!("{m}_max"))?;
-                    }
-                }
-            }
-            if !["single", "points"].contains(&columns.as_str()) {
-                return Err(err(
-                    &format!("{key}.columns"),
-                    "must be \"single\" or \"points\"",
-                ));
-            }
-            if !["estimators", "points"].contains(&series.as_str()) {
-                return Err(err(
-                    &format!("{key}.series"),
-                    "must be \"estimators\" or \"points\"",
-                ));
-            }
-            if !["std", "min-max", "none"].contains(&band.as_str()) {
-                return Err(err(
-                    &format!("{key}.band"),
-                    "must be \"std\", \"min-max\" or \"none\"",
-                ));
-            }
-            if (columns == "points" || series == "points") && sc.sweep().is_none() {
+            let points = columns == "points" || series == "points";
+            panel_rows(sc, key, rows, band, points)?;
+            panel_choices(key, columns, series, band)?;
+            if points && sc.sweep().is_none() {
                 return Err(err(
                     &format!("{key}.columns"),
                     "drawing the sweep's values needs a [sweep]",
@@ -529,6 +484,80 @@ pub(super) fn check_plot(sc: &Scenario, p: &PlotSpec, key: &str) -> Result<(), S
         }
         _ => Ok(()),
     }
+}
+
+/// A panels plot's rows: at least one row, each metric once and known (with its `_min` /
+/// `_max` for a min–max band), and kept per sweep value when the sweep's values are drawn.
+fn panel_rows(
+    sc: &Scenario,
+    key: &str,
+    rows: &[Vec<String>],
+    band: &str,
+    points: bool,
+) -> Result<(), ScenarioError> {
+    let rows_key = format!("{key}.rows");
+    let band_key = format!("{key}.band");
+    if rows.is_empty() || rows.iter().any(Vec::is_empty) {
+        return Err(err(&rows_key, "needs at least one row of metrics"));
+    }
+    // Each metric once: a panel per metric is bounded by the metrics there are (a metric
+    // repeated 500 times drew 500 panels for a minute).
+    let mut seen: Vec<&str> = Vec::new();
+    for m in rows.iter().flatten() {
+        if seen.contains(&m.as_str()) {
+            return Err(err(
+                &rows_key,
+                format!("`{m}` is listed twice; list each metric once"),
+            ));
+        }
+        seen.push(m);
+        known(sc, &rows_key, m)?;
+        let bounds = [format!("{m}_min"), format!("{m}_max")];
+        if band == "min-max" {
+            for b in &bounds {
+                known(sc, &band_key, b)?;
+            }
+        }
+        if points {
+            in_series(sc, &rows_key, m)?;
+            if band == "min-max" {
+                for b in &bounds {
+                    in_series(sc, &band_key, b)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A panels plot's `columns`, `series` and `band`: one of their words.
+fn panel_choices(key: &str, columns: &str, series: &str, band: &str) -> Result<(), ScenarioError> {
+    let choices: [(&str, &str, &[&str], &str); 3] = [
+        (
+            "columns",
+            columns,
+            &["single", "points"],
+            "\"single\" or \"points\"",
+        ),
+        (
+            "series",
+            series,
+            &["estimators", "points"],
+            "\"estimators\" or \"points\"",
+        ),
+        (
+            "band",
+            band,
+            &["std", "min-max", "none"],
+            "\"std\", \"min-max\" or \"none\"",
+        ),
+    ];
+    for (name, value, allowed, words) in choices {
+        if !allowed.contains(&value) {
+            return Err(err(&format!("{key}.{name}"), format!("must be {words}")));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
