@@ -365,6 +365,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
         .with_context(|| args.scenario.display().to_string())?;
     check_swarm_time(&sc, &args.net.timing, &args.over)?;
     args.net.check(sc.framework().agents())?;
+    warn_unmodelled_loss(&sc, &args.net.timing);
     let id = StudyId::new("swarm", sc.name());
     let prep = outdir::prepare(&args.out, &id, args.force, Hint::CLI)?;
     let o = WorldOptions {
@@ -531,6 +532,7 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
     edgekf::agent::Agent::new(&sc, 0, false)
         .with_context(|| format!("{}", args.scenario.display()))?;
     check_swarm_time(&sc, &args.timing, &args.over)?;
+    warn_unmodelled_loss(&sc, &args.timing);
     let kills = kill_steps(&args.kill, &sc)?;
     if !args.force {
         // Refused now, before any process starts (with --force the world replaces it at the end).
@@ -580,6 +582,23 @@ pub fn swarm(args: &SwarmArgs) -> Result<ExitCode> {
         crate::report::write_page(&args.out)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// On a mesh that may lose messages (`--lossy`, or real time, where a late message is lost), an
+/// estimator that models link failures at `p_fail = 0` predicts a lost input but keeps the
+/// covariance of a filter that loses none: said on stderr, with what to do.
+fn warn_unmodelled_loss(sc: &Scenario, t: &Timing) {
+    if !(t.lossy || t.mode == ModeArg::Realtime) {
+        return;
+    }
+    for def in sc.estimators() {
+        if def.config().link_failure() == Some(0.0) {
+            eprintln!(
+                "edgekf: warning: estimator `{}` has p_fail = 0 but the mesh may lose messages: it predicts a lost input, but its covariance does not count the loss; give p_fail the network's loss rate",
+                def.label()
+            );
+        }
+    }
 }
 
 /// `--kill AGENT@SECONDS` as steps, checked against the scenario.

@@ -163,6 +163,29 @@ fn comm_failures_from_the_network_only() {
     );
 }
 
+/// A mesh that may lose messages and an `rkf-ar` at `p_fail = 0` (whose covariance counts no
+/// loss): a warning names it; a lockstep mesh that loses nothing gets none.
+#[test]
+fn loss_the_filters_do_not_model_is_warned() {
+    let t = tmp("unmodelled");
+    let sc = write_scenario(&t, "u", &small("\"rkf\", \"rkf-ar\"", AR));
+    let sc = sc.to_str().unwrap();
+    for (flags, warned) in [(&["--lossy"][..], true), (&[][..], false)] {
+        let out = t.join(format!("out-{warned}"));
+        let mut args = vec!["swarm", sc, "--out", out.to_str().unwrap()];
+        args.extend_from_slice(flags);
+        let o = run(&args);
+        ok(&o);
+        let e = stderr(&o);
+        assert_eq!(
+            e.contains("warning: estimator `rkf-ar` has p_fail = 0"),
+            warned,
+            "{flags:?}: {e}"
+        );
+        assert!(!e.contains("estimator `rkf` "), "{e}");
+    }
+}
+
 fn departed_rows(dir: &Path) -> Vec<String> {
     fs::read_to_string(dir.join("status.csv"))
         .unwrap()
