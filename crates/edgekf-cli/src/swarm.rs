@@ -375,6 +375,7 @@ pub fn world(args: &WorldArgs) -> Result<ExitCode> {
         timeout: Duration::from_secs_f64(args.net.timing.timeout_s),
         after_ready: args.after_ready.clone(),
         drawn_failures: args.comm_failures == CommFailures::Drawn,
+        frames: edgekf_io::frames::frame_options(&sc),
     };
     let lines = args.progress_lines;
     let mut on_step = |k: usize| {

@@ -95,7 +95,7 @@ fn lockstep_swarm_writes_what_run_writes() {
             "--out",
             b.to_str().unwrap(),
         ]));
-        for f in ["metrics.csv", "paths.csv", "scenario.json"] {
+        for f in ["metrics.csv", "paths.csv", "scenario.json", "frames.json"] {
             let x = fs::read(a.join(f)).unwrap();
             let y = fs::read(b.join(f)).unwrap();
             assert!(x == y, "{name}: {f} of the swarm differs from edgekf run's");

@@ -678,6 +678,7 @@ mod tests {
             report: Some(Report {
                 estimates: vec![0.5],
                 cov_trace: cov,
+                covariances: vec![0.1, 0.0, 0.1],
                 quantities: vec![None, Some(2.0)],
             }),
             breakdown: None,

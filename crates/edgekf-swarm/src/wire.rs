@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use crate::agent_node::{Control, Status};
 
 /// The wire format's version.
-pub const WIRE_VERSION: u8 = 2;
+pub const WIRE_VERSION: u8 = 3;
 
 /// The first bytes of every message.
 const MAGIC: &[u8; 3] = b"EKF";
@@ -326,6 +326,7 @@ impl Body for Output {
             put_opt(w, l.report.as_ref(), |w, r| {
                 put_f64s(w, &r.estimates);
                 put_u64(w, r.cov_trace.to_bits());
+                put_f64s(w, &r.covariances);
                 put_len(w, r.quantities.len());
                 for q in &r.quantities {
                     put_opt(w, q.as_ref(), |w, q| put_u64(w, q.to_bits()));
@@ -340,6 +341,7 @@ impl Body for Output {
             Some(Report {
                 estimates: r.f64s()?,
                 cov_trace: r.f64()?,
+                covariances: r.f64s()?,
                 quantities: r.many(1, |r| r.opt(Reader::f64))?,
             })
         };
@@ -434,6 +436,7 @@ mod tests {
                 report: Some(Report {
                     estimates: vec![1.0 / 3.0],
                     cov_trace: 4.0,
+                    covariances: vec![0.5, -1e-300, 2.0],
                     quantities: vec![None, Some(f64::MIN_POSITIVE)],
                 }),
                 breakdown: Some("ε".into()),

@@ -38,6 +38,8 @@ pub struct WorldOptions {
     /// The world draws the links' failures with the scenario's `p_fail`, as `edgekf run` does;
     /// when false it sends none, and the messages the network loses are the only failures.
     pub drawn_failures: bool,
+    /// The frames to record (`frames.json`), as `edgekf run` records them.
+    pub frames: edgekf::sim::Options,
 }
 
 /// How an agent left.
@@ -310,6 +312,7 @@ impl Node<'_> {
         } else {
             World::new(sc)
         };
+        world.record_frames(self.o.frames);
         let start = Instant::now();
         let mut departures = Vec::new();
         let (mut expected_total, mut misses) = (0u64, 0u64);

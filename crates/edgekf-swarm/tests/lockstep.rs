@@ -65,6 +65,7 @@ fn swarm(sc: &Scenario, tag: &str) -> edgekf_swarm::world_node::WorldOutcome {
             timeout,
             after_ready: None,
             drawn_failures: true,
+            frames: Default::default(),
         };
         let out = run_world(sc, &o, &mut |_| {}).expect("world");
         for a in agents {

@@ -84,6 +84,10 @@ pub struct Report {
     pub estimates: Vec<f64>,
     /// Agent i's part of `cov_trace` ([`crate::estimate::Estimator::agent_cov_trace`]).
     pub cov_trace: f64,
+    /// The posterior covariance of each of agent i's edges, the upper triangle row by row
+    /// (`D(D+1)/2` per edge, edge-major; NaN where the estimator has none,
+    /// [`crate::estimate::Estimator::edge_covariance`]): the ellipses of the frames.
+    pub covariances: Vec<f64>,
     /// Per quantity of the estimator (in the order of its metrics), agent i's value
     /// ([`crate::estimate::Estimator::agent_quantity`]; `None`: it does not count).
     pub quantities: Vec<Option<f64>>,

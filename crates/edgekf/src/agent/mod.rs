@@ -519,6 +519,7 @@ impl AgentLane {
             Report {
                 estimates: self.est.estimates().to_vec(),
                 cov_trace: trace[0],
+                covariances: edge_covariances(self.est.as_ref(), self.y.len() / d, d),
                 quantities: self
                     .quantities
                     .iter()
@@ -591,4 +592,20 @@ impl AgentLane {
         };
         x.finish(&step);
     }
+}
+
+/// Every edge's posterior covariance of `est` (one run), the upper triangle row by row; NaN
+/// where it has none (what a frame records).
+fn edge_covariances(est: &dyn Estimator, edges: usize, d: usize) -> Vec<f64> {
+    let mut cov = vec![0.0; d * d];
+    let mut out = Vec::with_capacity(edges * d * (d + 1) / 2);
+    for e in 0..edges {
+        let has = est.edge_covariance(e, 0, &mut cov);
+        for a in 0..d {
+            for b in a..d {
+                out.push(if has { cov[a * d + b] } else { f64::NAN });
+            }
+        }
+    }
+    out
 }

@@ -15,6 +15,7 @@ use crate::control::pin_leaders;
 use crate::estimate::{AgentStat, Estimator, Reads};
 use crate::scenario::{Feedback, Scenario};
 use crate::sim::divergence::{self, Stop};
+use crate::sim::frames::{self, FrameRecorder};
 use crate::sim::lane::{measure, At, Context};
 use crate::sim::metrics::{metrics_for, Measure, Metric};
 use crate::sim::observe::{LaneObserver, PathRecorder};
@@ -49,6 +50,8 @@ pub struct World<'a> {
     k: usize,
     /// Each agent's first edge and number of edges.
     spans: Vec<(usize, usize)>,
+    /// What the results keep beyond the metrics (the frames, [`World::record_frames`]).
+    opt: Options,
 }
 
 impl<'a> World<'a> {
@@ -79,7 +82,7 @@ impl<'a> World<'a> {
                     x: vec![0.0; md],
                     y: vec![0.0; md],
                     du: vec![0.0; md],
-                    gathered: Gathered::new(n, md, reported_quantities(sc, def)),
+                    gathered: Gathered::new(n, (md, d), reported_quantities(sc, def)),
                     stop: None,
                     observers,
                 }
@@ -100,6 +103,22 @@ impl<'a> World<'a> {
             index: 0,
             k: 0,
             spans,
+            opt: Options::default(),
+        }
+    }
+
+    /// Also record frames of the run (`frames.json`: the positions, the agents' edge estimates
+    /// and their covariances at the reports `opt` chooses), as `edgekf run` does with `opt`.
+    pub fn record_frames(&mut self, opt: Options) {
+        self.opt = opt;
+        let Some(plan) = frames::plan(self.sc, &(0..1), opt) else {
+            return;
+        };
+        let fw = self.sc.framework();
+        let size = (fw.agents(), fw.graph().num_edges(), fw.dim());
+        for lane in &mut self.lanes {
+            lane.observers
+                .push(Box::new(FrameRecorder::new(&plan, size, 1)));
         }
     }
 
@@ -223,7 +242,6 @@ impl<'a> World<'a> {
                 if lane.stop.is_some() {
                     continue;
                 }
-                lane.observers.iter_mut().for_each(|o| o.on_report(&lane.z));
             }
             for o in &mut lane.observers {
                 o.on_input(k, &lane.u, at.now);
@@ -266,7 +284,7 @@ impl<'a> World<'a> {
             })
             .collect();
         let parts = vec![Chunk { range: 0..1, lanes }];
-        assemble(self.sc, 0..1, parts, Options::default())
+        assemble(self.sc, 0..1, parts, self.opt)
     }
 }
 
@@ -300,6 +318,12 @@ impl WorldLane {
             runs: 1,
         };
         self.stop = measure(&self.metrics, &mut self.values, &meas, at, cx);
+        if self.stop.is_none() {
+            for o in &mut self.observers {
+                o.on_report(&self.z);
+                o.on_measure(&meas);
+            }
+        }
     }
 }
 
@@ -313,15 +337,21 @@ struct Gathered {
     /// Each agent's quantities, in the order of `quantities`.
     values: Vec<Vec<Option<f64>>>,
     quantities: Vec<&'static str>,
+    /// Every edge's covariance as its agent reported it, the upper triangle row by row (NaN:
+    /// none), and D.
+    covariances: Vec<f64>,
+    d: usize,
 }
 
 impl Gathered {
-    fn new(n: usize, md: usize, quantities: Vec<&'static str>) -> Self {
+    fn new(n: usize, (md, d): (usize, usize), quantities: Vec<&'static str>) -> Self {
         Self {
             estimates: vec![0.0; md],
             cov: vec![0.0; n],
             values: vec![Vec::new(); n],
             quantities,
+            covariances: vec![f64::NAN; md / d * tri(d)],
+            d,
         }
     }
 
@@ -332,7 +362,16 @@ impl Gathered {
         }
         self.cov[i] = r.cov_trace;
         self.values[i].clone_from(&r.quantities);
+        let t = tri(d);
+        if r.covariances.len() == deg * t {
+            self.covariances[first * t..(first + deg) * t].copy_from_slice(&r.covariances);
+        }
     }
+}
+
+/// Entries of a symmetric D × D matrix's upper triangle.
+fn tri(d: usize) -> usize {
+    d * (d + 1) / 2
 }
 
 impl Estimator for Gathered {
@@ -340,6 +379,25 @@ impl Estimator for Gathered {
 
     fn estimates(&self) -> &[f64] {
         &self.estimates
+    }
+
+    /// As the edge's agent reported it at the last report.
+    fn edge_covariance(&self, e: usize, _r: usize, out: &mut [f64]) -> bool {
+        let d = self.d;
+        let t = tri(d);
+        let c = &self.covariances[e * t..(e + 1) * t];
+        if c.iter().any(|v| v.is_nan()) {
+            return false;
+        }
+        let mut at = 0;
+        for a in 0..d {
+            for b in a..d {
+                out[a * d + b] = c[at];
+                out[b * d + a] = c[at];
+                at += 1;
+            }
+        }
+        true
     }
 
     /// The sum of the present agents' parts, as the engine's filters give it (a departed
