@@ -477,9 +477,12 @@ fn spawn(exe: &Path, args: &[String], stdout: Stdio, log: &Path) -> Result<Child
         .stdin(Stdio::null())
         .stdout(stdout)
         .stderr(err);
-    // The study's provenance records the command the user typed, not the world's own.
-    let typed: Vec<String> = std::env::args().collect();
-    cmd.env(crate::INVOKED_AS, serde_json::to_string(&typed)?);
+    // The study's provenance (the world writes it) records the command the user typed, not the
+    // world's own.
+    if args.first().is_some_and(|a| a == "world") {
+        let typed: Vec<String> = std::env::args().collect();
+        cmd.env(crate::INVOKED_AS, serde_json::to_string(&typed)?);
+    }
     if std::env::var_os("ZENOH_RUNTIME").is_none() {
         // N + 1 processes share this machine's cores: one thread per Zenoh runtime, not
         // Zenoh's default pools (fewer wake-ups between threads; docs/agents.md).
