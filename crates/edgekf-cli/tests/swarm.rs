@@ -186,6 +186,33 @@ fn loss_the_filters_do_not_model_is_warned() {
     }
 }
 
+/// An `--after-ready` command that does not end is the world's to bound: the swarm fails naming
+/// the command (the agents, ready, wait for the start past their own `--timeout-s`; they used
+/// to give up first, and the swarm blamed them).
+#[test]
+fn a_slow_after_ready_command_is_named() {
+    let t = tmp("after-ready");
+    let sc = write_scenario(&t, "a", &small("\"rkf\"", ""));
+    let out = t.join("out");
+    let o = run(&[
+        "swarm",
+        sc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--after-ready",
+        "sleep 600",
+        "--timeout-s",
+        "20",
+    ]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("--after-ready `sleep 600` did not finish within 20.0 s"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
 fn departed_rows(dir: &Path) -> Vec<String> {
     fs::read_to_string(dir.join("status.csv"))
         .unwrap()

@@ -367,7 +367,9 @@ impl Node {
                 let why = e.unwrap_or_else(|| "it stopped before the start".into());
                 return Err(SwarmError::Stopped(why));
             }
-            if Instant::now() >= deadline {
+            // Ready, with the world there: the start is the world's to give (it bounds its own
+            // waits, and an --after-ready command), so a slow start is not this agent's failure.
+            if Instant::now() >= deadline && !ready {
                 return Err(self.meet_timeout());
             }
             if Instant::now() >= next_hello {

@@ -209,6 +209,38 @@ impl events::Inbox for Inbox {
     }
 }
 
+/// Runs the `--after-ready` command, bounded by `timeout` (killed past it).
+fn run_after_ready(cmd: &str, timeout: Duration) -> Result<(), SwarmError> {
+    let mut child = Command::new("sh")
+        .arg("-c")
+        .arg(cmd)
+        .spawn()
+        .map_err(|e| SwarmError::Process(format!("cannot run --after-ready `{cmd}`: {e}")))?;
+    let deadline = Instant::now() + timeout;
+    loop {
+        let status = child
+            .try_wait()
+            .map_err(|e| SwarmError::Process(format!("waiting for --after-ready `{cmd}`: {e}")))?;
+        match status {
+            Some(s) if s.success() => return Ok(()),
+            Some(s) => {
+                return Err(SwarmError::Process(format!(
+                    "--after-ready `{cmd}` failed ({s})"
+                )))
+            }
+            None if Instant::now() >= deadline => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(SwarmError::Process(format!(
+                    "--after-ready `{cmd}` did not finish within {:.1} s (--timeout-s); the agents were ready",
+                    timeout.as_secs_f64()
+                )));
+            }
+            None => std::thread::sleep(Duration::from_millis(10)),
+        }
+    }
+}
+
 impl Inbox {
     /// Whether every `expected` agent's output of step `k` is here (or, live, its process
     /// ended).
@@ -286,18 +318,7 @@ impl Node<'_> {
             ));
         }
         if let Some(cmd) = &self.o.after_ready {
-            let status = Command::new("sh")
-                .arg("-c")
-                .arg(cmd)
-                .status()
-                .map_err(|e| {
-                    SwarmError::Process(format!("cannot run --after-ready `{cmd}`: {e}"))
-                })?;
-            if !status.success() {
-                return Err(SwarmError::Process(format!(
-                    "--after-ready `{cmd}` failed ({status})"
-                )));
-            }
+            run_after_ready(cmd, self.o.timeout)?;
         }
         self.put(&self.keys.control(), &Control::Start)
     }
