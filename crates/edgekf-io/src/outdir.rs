@@ -66,7 +66,7 @@ impl std::fmt::Display for StudyId {
     }
 }
 
-/// How the caller names the output directory and the way to empty it, for the messages: the
+/// How the caller names the output directory and the way to replace its contents, for the messages: the
 /// CLI's `--out` / `--force`, or Python's `dir` / `force=True`.
 #[derive(Debug, Clone, Copy)]
 pub struct Hint {
@@ -88,7 +88,7 @@ impl Hint {
 #[derive(Debug, thiserror::Error)]
 pub enum OutDirError {
     /// The directory holds the outputs of another study.
-    #[error("{dir}: holds {found}; this is {want}. Outputs never mix: choose another {out}, or pass {force} to empty it first")]
+    #[error("{dir}: holds {found}; this is {want}. Outputs never mix: choose another {out}, or pass {force} to replace its contents")]
     OtherStudy {
         /// The directory.
         dir: String,
@@ -102,7 +102,7 @@ pub enum OutDirError {
         force: &'static str,
     },
     /// The directory holds files that no provenance lists.
-    #[error("{dir}: holds {files}, which {which} not written by {want}. Outputs never mix: choose a new or empty {out}, or pass {force} to empty it first")]
+    #[error("{dir}: holds {files}, which {which} not written by {want}. Outputs never mix: choose a new or empty {out}, or pass {force} to replace its contents")]
     Foreign {
         /// The directory.
         dir: String,
@@ -118,7 +118,7 @@ pub enum OutDirError {
         force: &'static str,
     },
     /// Outputs of an older edgekf whose provenance does not list its files.
-    #[error("{dir}: holds the outputs of {found}, written by an edgekf that did not list its files in provenance.json, so they cannot be told from this run's. Choose another {out}, or pass {force} to empty it first")]
+    #[error("{dir}: holds the outputs of {found}, written by an edgekf that did not list its files in provenance.json, so they cannot be told from this run's. Choose another {out}, or pass {force} to replace its contents")]
     Unlisted {
         /// The directory.
         dir: String,
@@ -130,7 +130,7 @@ pub enum OutDirError {
         force: &'static str,
     },
     /// A `reproduce` output root (study subdirectories) where a single study was to be written.
-    #[error("{dir}: holds the study directories {subdirs} (a `reproduce` output root); a study's files would mix with them. Choose another {out}, or pass {force} to empty it first")]
+    #[error("{dir}: holds the study directories {subdirs} (a `reproduce` output root); a study's files would mix with them. Choose another {out}, or pass {force} to replace its contents")]
     Collection {
         /// The directory.
         dir: String,
