@@ -134,7 +134,22 @@ fn watch(fd: libc::c_int) {
             let _ = fs::remove_dir(dir);
         }
     }
-    let line = match log.written.as_slice() {
+    let (msg, code) = last_line(&log.written, libc::c_int::from(b));
+    // Another thread may be half-way through an `eprintln!` ("wrote DIR" without its newline
+    // yet: stderr is unbuffered, one line is several writes): its lock, held until the exit,
+    // makes this line start a line of its own.
+    let _stderr = std::io::stderr().lock();
+    // SAFETY: write(2) to stderr of a valid buffer, then _exit(2) (no destructors, no atexit:
+    // other threads may be anywhere).
+    unsafe {
+        libc::write(2, msg.as_ptr().cast(), msg.len());
+        libc::_exit(code);
+    }
+}
+
+/// The line that ends the process after `signal`, saying what was `written`, and the exit code.
+fn last_line(written: &[PathBuf], signal: libc::c_int) -> (String, i32) {
+    let line = match written {
         [] => "nothing was written".to_string(),
         w => format!(
             "{} {} written completely; nothing else was written",
@@ -151,22 +166,12 @@ fn watch(fd: libc::c_int) {
     } else {
         ""
     };
-    let (how, code) = if libc::c_int::from(b) == libc::SIGTERM {
+    let (how, code) = if signal == libc::SIGTERM {
         ("terminated (SIGTERM)", 128 + libc::SIGTERM)
     } else {
         ("interrupted (Ctrl-C)", 130)
     };
-    let msg = format!("{lead}edgekf: {how}: {line}\n");
-    // Another thread may be half-way through an `eprintln!` ("wrote DIR" without its newline
-    // yet: stderr is unbuffered, one line is several writes): its lock, held until the exit,
-    // makes this line start a line of its own.
-    let _stderr = std::io::stderr().lock();
-    // SAFETY: write(2) to stderr of a valid buffer, then _exit(2) (no destructors, no atexit:
-    // other threads may be anywhere).
-    unsafe {
-        libc::write(2, msg.as_ptr().cast(), msg.len());
-        libc::_exit(code);
-    }
+    (format!("{lead}edgekf: {how}: {line}\n"), code)
 }
 
 /// Asks the children to stop (SIGINT: a world finishes a commit under way and removes its

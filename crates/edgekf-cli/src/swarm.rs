@@ -730,15 +730,7 @@ fn supervise(
                     if k == 1 {
                         eprintln!("edgekf swarm: {} agents ready; stepping", agents.len());
                     }
-                    for (&a, &at) in kills {
-                        if k + 1 >= at {
-                            if let Some(mut c) = agents[a].take() {
-                                peak[a] = rss_mb(c.id());
-                                let _ = c.kill(); // SIGKILL
-                                let _ = c.wait();
-                            }
-                        }
-                    }
+                    kill_due(kills, k, agents, &mut peak);
                 }
                 None => match line.strip_prefix("summary ") {
                     Some(summary) => eprintln!("edgekf {summary}"),
@@ -773,6 +765,24 @@ fn supervise(
                 if let Some(c) = a {
                     peak[i] = rss_mb(c.id()).or(peak[i]);
                 }
+            }
+        }
+    }
+}
+
+/// `--kill`: SIGKILL each agent whose step comes next after step `k` (its peak memory kept).
+fn kill_due(
+    kills: &BTreeMap<usize, usize>,
+    k: usize,
+    agents: &mut [Option<Child>],
+    peak: &mut [Option<f64>],
+) {
+    for (&a, &at) in kills {
+        if k + 1 >= at {
+            if let Some(mut c) = agents[a].take() {
+                peak[a] = rss_mb(c.id());
+                let _ = c.kill(); // SIGKILL
+                let _ = c.wait();
             }
         }
     }

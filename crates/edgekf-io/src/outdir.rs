@@ -380,33 +380,38 @@ pub fn prepare(
                 forced: false,
             })
         }
-        None => {
-            let studies: Vec<String> = list
-                .iter()
-                .filter(|(n, d)| *d && dir.join(n).join("provenance.json").is_file())
-                .map(|(n, _)| format!("{n}/"))
-                .collect();
-            if !studies.is_empty() {
-                return Err(OutDirError::Collection {
-                    dir: shown,
-                    subdirs: few(&studies),
-                    out: hint.out,
-                    force: hint.force,
-                });
-            }
-            let names: Vec<String> = list
-                .iter()
-                .map(|(n, d)| if *d { format!("{n}/") } else { n.clone() })
-                .collect();
-            Err(OutDirError::Foreign {
-                dir: shown,
-                which: if names.len() == 1 { "was" } else { "were" },
-                files: few(&names),
-                want: format!("edgekf (there is no provenance.json); this is {want}"),
-                out: hint.out,
-                force: hint.force,
-            })
-        }
+        None => Err(without_provenance(dir, &list, &want, hint)),
+    }
+}
+
+/// Why a directory that holds files but no provenance is refused: the study directories of a
+/// `reproduce` root, or files edgekf did not write.
+fn without_provenance(dir: &Path, list: &[(String, bool)], want: &str, hint: Hint) -> OutDirError {
+    let shown = dir.display().to_string();
+    let studies: Vec<String> = list
+        .iter()
+        .filter(|(n, d)| *d && dir.join(n).join("provenance.json").is_file())
+        .map(|(n, _)| format!("{n}/"))
+        .collect();
+    if !studies.is_empty() {
+        return OutDirError::Collection {
+            dir: shown,
+            subdirs: few(&studies),
+            out: hint.out,
+            force: hint.force,
+        };
+    }
+    let names: Vec<String> = list
+        .iter()
+        .map(|(n, d)| if *d { format!("{n}/") } else { n.clone() })
+        .collect();
+    OutDirError::Foreign {
+        dir: shown,
+        which: if names.len() == 1 { "was" } else { "were" },
+        files: few(&names),
+        want: format!("edgekf (there is no provenance.json); this is {want}"),
+        out: hint.out,
+        force: hint.force,
     }
 }
 
