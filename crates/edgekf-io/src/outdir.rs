@@ -66,8 +66,8 @@ impl std::fmt::Display for StudyId {
     }
 }
 
-/// How the caller names the output directory and the way to replace its contents, for the messages: the
-/// CLI's `--out` / `--force`, or Python's `dir` / `force=True`.
+/// How the caller names the output directory and the way to replace its contents, for the
+/// messages: the CLI's `--out` / `--force`, or Python's `dir` / `force=True`.
 #[derive(Debug, Clone, Copy)]
 pub struct Hint {
     /// The argument that names the directory (`--out`).
