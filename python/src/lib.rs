@@ -396,14 +396,7 @@ impl PyRes {
             let f = rf.frames;
             let mut cov = vec![0.0; f * m * d * d];
             for (full, tri) in cov.chunks_mut(d * d).zip(rf.covariances.chunks(t)) {
-                let mut k = 0;
-                for r in 0..d {
-                    for c in r..d {
-                        full[r * d + c] = tri[k];
-                        full[c * d + r] = tri[k];
-                        k += 1;
-                    }
-                }
+                edgekf::sim::frames::unpack_upper(tri, d, full);
             }
             let arr = |v: Vec<f64>, dims: &[usize]| -> PyResult<Bound<'py, PyAny>> {
                 Ok(v.into_pyarray(py).reshape(dims.to_vec())?.into_any())

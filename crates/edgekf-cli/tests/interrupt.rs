@@ -122,6 +122,53 @@ fn check_outcome(status: ExitStatus, stderr: &str, out: &Path) -> &'static str {
     }
 }
 
+/// [`SCENARIO`] long enough to be announced ("estimated …", printed before the simulation
+/// starts) and to be still running when a signal lands.
+fn long_scenario() -> String {
+    SCENARIO
+        .replace("steps = 300", "steps = 50000000")
+        .replace("every = 4", "every = 1000000")
+}
+
+/// `edgekf run SC --out OUT EXTRA` sent `signal` once it has announced its estimate: its exit
+/// status and what it printed after that line. Asserts that it ends within 2 s.
+fn run_signalled(
+    sc: &Path,
+    out: &Path,
+    extra: &[&str],
+    signal: libc::c_int,
+) -> (ExitStatus, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_edgekf"))
+        .args(["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args(extra)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starts");
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.contains("estimated"), "{line}");
+    let sent = Instant::now();
+    // SAFETY: kill(2) on a child we started and have not reaped.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, signal);
+    }
+    let status = wait_for(&mut child, Duration::from_secs(2)).expect("ends within 2 s");
+    assert!(sent.elapsed() < Duration::from_secs(2));
+    let mut rest = String::new();
+    err.read_to_string(&mut rest).unwrap();
+    (status, rest)
+}
+
+/// The visible files of `dir` with their bytes.
+fn contents(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    visible(dir)
+        .into_iter()
+        .map(|f| (f.clone(), fs::read(dir.join(&f)).unwrap()))
+        .collect()
+}
+
 /// One Ctrl-C (or SIGTERM) while the study simulates: exit 130 (143) and one line, nothing
 /// written.
 #[test]
@@ -132,35 +179,9 @@ fn ctrl_c_during_a_run_says_nothing_was_written() {
     ] {
         let dir = tmp(&format!("one-{signal}"));
         let sc = dir.join("s.toml");
-        // Long enough to be announced ("estimated …", printed before the simulation starts)
-        // and to be still running when the signal lands.
-        fs::write(
-            &sc,
-            SCENARIO
-                .replace("steps = 300", "steps = 50000000")
-                .replace("every = 4", "every = 1000000"),
-        )
-        .unwrap();
+        fs::write(&sc, long_scenario()).unwrap();
         let out = dir.join("out");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_edgekf"))
-            .args(["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("starts");
-        let mut err = BufReader::new(child.stderr.take().unwrap());
-        let mut line = String::new();
-        err.read_line(&mut line).unwrap();
-        assert!(line.contains("estimated"), "{line}");
-        let sent = Instant::now();
-        // SAFETY: kill(2) on a child we started and have not reaped.
-        unsafe {
-            libc::kill(child.id() as libc::pid_t, signal);
-        }
-        let status = wait_for(&mut child, Duration::from_secs(2)).expect("ends within 2 s");
-        assert!(sent.elapsed() < Duration::from_secs(2));
-        let mut rest = String::new();
-        err.read_to_string(&mut rest).unwrap();
+        let (status, rest) = run_signalled(&sc, &out, &[], signal);
         assert_eq!(status.code(), Some(code), "{rest}");
         assert_eq!(
             rest.trim_end(),
@@ -178,47 +199,19 @@ fn ctrl_c_after_force_leaves_the_old_study() {
     let dir = tmp("force");
     let (old, sc) = (dir.join("old.toml"), dir.join("s.toml"));
     fs::write(&old, SCENARIO.replace("\"ctrl-c\"", "\"old\"")).unwrap();
-    fs::write(
-        &sc,
-        SCENARIO
-            .replace("steps = 300", "steps = 50000000")
-            .replace("every = 4", "every = 1000000"),
-    )
-    .unwrap();
+    fs::write(&sc, long_scenario()).unwrap();
     let out = dir.join("out");
-    let exe = env!("CARGO_BIN_EXE_edgekf");
-    let first = Command::new(exe)
+    let first = Command::new(env!("CARGO_BIN_EXE_edgekf"))
         .args(["run", old.to_str().unwrap(), "--out", out.to_str().unwrap()])
         .output()
         .unwrap();
     assert!(first.status.success());
-    let before: Vec<(String, Vec<u8>)> = visible(&out)
-        .into_iter()
-        .map(|f| (f.clone(), fs::read(out.join(&f)).unwrap()))
-        .collect();
-    let mut child = Command::new(exe)
-        .args(["run", sc.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .arg("--force")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starts");
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    err.read_line(&mut line).unwrap();
-    assert!(line.contains("estimated"), "{line}");
-    sigint(&child);
-    let status = wait_for(&mut child, Duration::from_secs(2)).expect("ends within 2 s");
-    let mut rest = String::new();
-    err.read_to_string(&mut rest).unwrap();
+    let before = contents(&out);
+    let (status, rest) = run_signalled(&sc, &out, &["--force"], libc::SIGINT);
     assert_eq!(status.code(), Some(130), "{rest}");
     assert!(rest.ends_with("nothing was written\n"), "{rest}");
-    let after: Vec<(String, Vec<u8>)> = visible(&out)
-        .into_iter()
-        .map(|f| (f.clone(), fs::read(out.join(&f)).unwrap()))
-        .collect();
     assert!(
-        after == before,
+        contents(&out) == before,
         "the old study changed: {:?}",
         visible(&out)
     );

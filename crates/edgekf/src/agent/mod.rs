@@ -601,11 +601,7 @@ fn edge_covariances(est: &dyn Estimator, edges: usize, d: usize) -> Vec<f64> {
     let mut out = Vec::with_capacity(edges * d * (d + 1) / 2);
     for e in 0..edges {
         let has = est.edge_covariance(e, 0, &mut cov);
-        for a in 0..d {
-            for b in a..d {
-                out.push(if has { cov[a * d + b] } else { f64::NAN });
-            }
-        }
+        crate::sim::frames::push_upper(has.then_some(cov.as_slice()), d, &mut out);
     }
     out
 }

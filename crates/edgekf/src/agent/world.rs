@@ -389,14 +389,7 @@ impl Estimator for Gathered {
         if c.iter().any(|v| v.is_nan()) {
             return false;
         }
-        let mut at = 0;
-        for a in 0..d {
-            for b in a..d {
-                out[a * d + b] = c[at];
-                out[b * d + a] = c[at];
-                at += 1;
-            }
-        }
+        frames::unpack_upper(c, d, out);
         true
     }
 

@@ -165,12 +165,7 @@ impl LaneObserver for FrameRecorder {
                 .extend((0..m * d).map(|row| xhat[row * runs + r]));
             for e in 0..m {
                 let has = ms.estimator.edge_covariance(e, r, &mut self.cov);
-                for a in 0..d {
-                    for b in a..d {
-                        rf.covariances
-                            .push(if has { self.cov[a * d + b] } else { f64::NAN });
-                    }
-                }
+                push_upper(has.then_some(self.cov.as_slice()), d, &mut rf.covariances);
             }
             rf.observed.extend((0..m).map(|e| faults.observed(e, r)));
             rf.present.extend((0..n).map(|i| faults.present(i, r)));
@@ -190,6 +185,28 @@ impl LaneObserver for FrameRecorder {
     fn finish(self: Box<Self>, out: &mut LaneOut) {
         out.frames = self.recorded.into_iter().map(|(_, rf)| rf).collect();
         out.frame_targets = self.targets;
+    }
+}
+
+/// Appends the upper triangle of the D × D matrix `m`, row by row — NaN for each entry when
+/// there is none: how a frame keeps a covariance ([`RunFrames::covariances`]).
+pub fn push_upper(m: Option<&[f64]>, d: usize, out: &mut Vec<f64>) {
+    for a in 0..d {
+        for b in a..d {
+            out.push(m.map_or(f64::NAN, |m| m[a * d + b]));
+        }
+    }
+}
+
+/// The symmetric D × D matrix (`full`) of an upper triangle kept by [`push_upper`].
+pub fn unpack_upper(tri: &[f64], d: usize, full: &mut [f64]) {
+    let mut at = 0;
+    for a in 0..d {
+        for b in a..d {
+            full[a * d + b] = tri[at];
+            full[b * d + a] = tri[at];
+            at += 1;
+        }
     }
 }
 
