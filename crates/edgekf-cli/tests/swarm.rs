@@ -670,17 +670,8 @@ fn processes_of_different_scenarios_are_refused() {
         all.contains("every process of a swarm must run the same resolved scenario"),
         "{all}"
     );
-    // The world names the agents that ended (2, and a neighbour that heard it on the mesh may
-    // refuse it too), not the ones that waited for them.
-    let named = we
-        .split_once("agents [")
-        .and_then(|(_, r)| r.split_once(']'))
-        .map(|(list, rest)| (list.split(", ").any(|a| a == "2"), rest))
-        .unwrap_or((false, ""));
-    assert!(
-        named.0 && named.1.starts_with(" connected and then ended"),
-        "{we}"
-    );
+    // The world refuses agent 2 by name, at once (its hello to the world carries its scenario).
+    assert!(we.contains("/agent/2/hello"), "{we}");
 }
 
 /// The mesh's loss per message from network.csv: (sent, not received, lost to the filters).

@@ -199,7 +199,6 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     peers.dedup();
     let keys = Keys::new(&o.endpoints.swarm);
     let world = o.endpoints.open_agent_world()?;
-    let mesh = o.endpoints.open_mesh(o.id, &peers)?;
     let id = ScenarioId::of(sc);
     let mut events = Events::new(Inbox {
         id: id.clone(),
@@ -217,9 +216,12 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     events.subscribe(&world, &keys.control(), Chan::Control)?;
     events.liveliness(&world, &keys.alive_world())?;
     events.liveliness(&world, &keys.alive_agents())?;
-    for &j in &neighbours {
-        events.subscribe(&mesh, &keys.mesh_of(j), Chan::Mesh)?;
-        events.expect(&mesh, [keys.input(j), keys.exchange(j)])?;
+    // Nothing on the mesh before the world is there (it announces itself once it follows the
+    // agents): an agent that then ends at once, on a neighbour of another scenario, has been
+    // seen by the world, which names it as the cause.
+    let deadline = Instant::now() + o.timeout;
+    if !events.wait_until(deadline, |s| s.world_alive)? {
+        return Err(no_world(o));
     }
     let _token = world
         .liveliness()
@@ -229,6 +231,11 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
             what: "declare this agent's liveliness".into(),
             detail: e.to_string(),
         })?;
+    let mesh = o.endpoints.open_mesh(o.id, &peers)?;
+    for &j in &neighbours {
+        events.subscribe(&mesh, &keys.mesh_of(j), Chan::Mesh)?;
+        events.expect(&mesh, [keys.input(j), keys.exchange(j)])?;
+    }
     let mut node = Node {
         me: o.id,
         id,
@@ -243,7 +250,10 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
         sent_inputs: 0,
         sent_exchanges: 0,
     };
-    node.meet()?;
+    // Hello to the world too: a world of another scenario refuses this agent by name at once.
+    let hello = wire::encode(&node.id, &node.me);
+    node.put(true, &node.keys.hello(node.me), hello)?;
+    node.meet(deadline)?;
     let result = node.steps(sc.steps());
     node.report_links();
     result
@@ -349,8 +359,7 @@ impl Node {
 
     /// Before the first step: hello to the neighbours until every one is heard and the world
     /// is there, then ready to the world until it starts.
-    fn meet(&mut self) -> Result<(), SwarmError> {
-        let deadline = Instant::now() + self.o.timeout;
+    fn meet(&mut self, deadline: Instant) -> Result<(), SwarmError> {
         let mut next_hello = Instant::now();
         let mut next_declare = Instant::now() + Duration::from_secs(1);
         loop {
@@ -416,14 +425,7 @@ impl Node {
         let o = &self.o;
         let g = self.inbox();
         if !g.state.world_alive {
-            return SwarmError::timeout(
-                format!(
-                    "agent {}: no world answered at {}",
-                    self.me, o.endpoints.world
-                ),
-                o.timeout,
-                "start `edgekf world` there, or give its endpoint with --world",
-            );
+            return no_world(o);
         }
         let missing: Vec<usize> = self
             .neighbours
@@ -641,6 +643,15 @@ impl Node {
         let key = self.keys.status(self.me);
         let _ = self.put(true, &key, wire::encode(&self.id, &Status::Links(links)));
     }
+}
+
+/// No world's liveliness seen within the timeout.
+fn no_world(o: &AgentOptions) -> SwarmError {
+    SwarmError::timeout(
+        format!("agent {}: no world answered at {}", o.id, o.endpoints.world),
+        o.timeout,
+        "start `edgekf world` there, or give its endpoint with --world",
+    )
 }
 
 /// A lane whose input or report is not finite (its loop diverged) reports a breakdown, and

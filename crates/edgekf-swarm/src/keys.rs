@@ -58,6 +58,12 @@ impl Keys {
         format!("{}/agent/{i}/hello", self.prefix)
     }
 
+    /// Every agent's hello (the world's subscription: an agent also says hello to the world
+    /// once it sees it, so that the world refuses an agent of another scenario by name at once).
+    pub fn hellos(&self) -> String {
+        format!("{}/agent/*/hello", self.prefix)
+    }
+
     /// Agent i → world: "I hear every neighbour" (and, at the end, its link statistics).
     pub fn status(&self, i: usize) -> String {
         format!("{}/agent/{i}/status", self.prefix)

@@ -112,14 +112,6 @@ pub fn run_world(
 ) -> Result<WorldOutcome, SwarmError> {
     let keys = Keys::new(&o.endpoints.swarm);
     let session = o.endpoints.open_world()?;
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_world())
-        .wait()
-        .map_err(|e| SwarmError::Zenoh {
-            what: "declare the world's liveliness".into(),
-            detail: e.to_string(),
-        })?;
     let n = sc.framework().agents();
     let id = ScenarioId::of(sc);
     let mut events = Events::new(Inbox {
@@ -139,7 +131,19 @@ pub fn run_world(
     events.subscribe(&session, &keys.outputs(), Chan::Output)?;
     events.expect(&session, (0..n).map(|i| keys.output(i)))?;
     events.subscribe(&session, &keys.statuses(), Chan::Status)?;
+    events.subscribe(&session, &keys.hellos(), Chan::Hello)?;
     events.liveliness(&session, &keys.alive_agents())?;
+    // Announced only now that the world follows the agents: an agent declares itself, and
+    // touches the mesh, only once it sees the world, so an agent that ends at once (on a
+    // neighbour of another scenario) is still seen to have connected.
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_world())
+        .wait()
+        .map_err(|e| SwarmError::Zenoh {
+            what: "declare the world's liveliness".into(),
+            detail: e.to_string(),
+        })?;
     let mut node = Node {
         id,
         keys,
@@ -202,6 +206,10 @@ impl events::Inbox for Inbox {
                 } else {
                     self.outputs.entry(out.k).or_default().insert(i, out);
                 }
+            }
+            // Decoded only to refuse an agent of another scenario (by its key, so by name).
+            Chan::Hello => {
+                wire::decode::<usize>(&self.id, ev.key, ev.bytes)?;
             }
             _ => {}
         }
