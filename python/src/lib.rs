@@ -159,16 +159,7 @@ fn simulate(
     threads: Option<usize>,
     progress: bool,
 ) -> PyResult<(Results, Option<SweepResults>)> {
-    if threads == Some(0) {
-        return Err(PyValueError::new_err("threads must be positive"));
-    }
-    let mut b = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = threads {
-        b = b.num_threads(t);
-    }
-    let pool = b
-        .build()
-        .map_err(|e| PyRuntimeError::new_err(format!("cannot start the worker threads: {e}")))?;
+    let pool = worker_pool(threads)?;
     let obs = Obs {
         done: AtomicU64::new(0),
         stop: AtomicBool::new(false),
@@ -225,15 +216,33 @@ fn simulate(
         if let Some(e) = interrupted {
             return Err(e);
         }
-        match joined {
-            Ok(Ok(out)) => Ok(out),
-            Ok(Err(e)) => Err(PyRuntimeError::new_err(e.to_string())),
-            Err(p) => Err(PyRuntimeError::new_err(format!(
-                "edgekf: internal error (please report): {}",
-                panic_message(p.as_ref())
-            ))),
-        }
+        from_worker(joined)
     })
+}
+
+/// The worker's result, its error or its panic as Python's `RuntimeError`.
+fn from_worker<T, E: std::fmt::Display>(joined: std::thread::Result<Result<T, E>>) -> PyResult<T> {
+    match joined {
+        Ok(Ok(out)) => Ok(out),
+        Ok(Err(e)) => Err(PyRuntimeError::new_err(e.to_string())),
+        Err(p) => Err(PyRuntimeError::new_err(format!(
+            "edgekf: internal error (please report): {}",
+            panic_message(p.as_ref())
+        ))),
+    }
+}
+
+/// A pool of `threads` workers (rayon's default, one per core, for `None`).
+fn worker_pool(threads: Option<usize>) -> PyResult<rayon::ThreadPool> {
+    if threads == Some(0) {
+        return Err(PyValueError::new_err("threads must be positive"));
+    }
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        b = b.num_threads(t);
+    }
+    b.build()
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start the worker threads: {e}")))
 }
 
 /// The study of `sc` as the CLI's `run` makes it: every run, a few of them frame by frame (`save`

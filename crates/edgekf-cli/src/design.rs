@@ -425,8 +425,7 @@ fn plot_framework(
     method: &str,
     path: &Path,
 ) -> anyhow::Result<()> {
-    use crate::figure::{palette, Axis, Curve, Figure, Label, Panel, Style, VAlign};
-    let n = f.agents();
+    use crate::figure::{Axis, Figure, Panel};
     let xy = |i: usize| -> (f64, f64) {
         let p = f.point(i);
         (p[0], if p.len() > 1 { p[1] } else { 0.0 })
@@ -434,15 +433,39 @@ fn plot_framework(
     let mut p = Panel::new(Axis::linear("x", "m"), Axis::linear("y", "m"));
     p.equal_aspect = true;
     p.coincide_tolerance = None;
+    // Weight labels only while they stay readable.
+    let label_weights = f.graph().links().len() <= 60;
+    draw_links(&mut p, f, &xy, label_weights);
+    agent_marks(&mut p, f, xy);
+    let mut fig = Figure::single(framework_title(f, report, method), p).with_size(900, 900);
+    if !label_weights {
+        fig.notes.push(
+            "Weights not written on the links (more than 60 links); see framework.json.".into(),
+        );
+    }
+    let rep = fig.render(path).map_err(|e| anyhow!("plot: {e}"))?;
+    for w in rep.problems() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(())
+}
+
+/// The links as curves, width ∝ |weight|, and (`label_weights`) each weight written at the point
+/// of its link (half way, or nearer an end) farthest from the agents and the labels placed so
+/// far: a link through an agent would otherwise have its label on that agent.
+fn draw_links(
+    p: &mut crate::figure::Panel,
+    f: &Framework,
+    xy: &dyn Fn(usize) -> (f64, f64),
+    label_weights: bool,
+) {
+    use crate::figure::{palette, Curve, Label, Style, VAlign};
+    let n = f.agents();
     let wmax = f
         .weights()
         .iter()
         .fold(0.0_f64, |m, w| m.max(w.abs()))
         .max(f64::MIN_POSITIVE);
-    // Weight labels only while they stay readable, each at the point of its link (half way, or
-    // nearer an end) farthest from the agents and the labels placed so far: a link through an
-    // agent would otherwise have its label on that agent.
-    let label_weights = f.graph().links().len() <= 60;
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for i in 0..n {
         let (x, y) = xy(i);
@@ -478,8 +501,11 @@ fn plot_framework(
             });
         }
     }
-    agent_marks(&mut p, f, xy);
-    let title = format!(
+}
+
+/// The framework figure's title: name, design, links and the stress's conditioning.
+fn framework_title(f: &Framework, report: &CheckReport, method: &str) -> String {
+    format!(
         "{} — {} design, {} links, λ_{{max}}/λ_{{gap}} = {:.1}{}",
         f.name(),
         method,
@@ -490,18 +516,7 @@ fn plot_framework(
         } else {
             ""
         }
-    );
-    let mut fig = Figure::single(title, p).with_size(900, 900);
-    if !label_weights {
-        fig.notes.push(
-            "Weights not written on the links (more than 60 links); see framework.json.".into(),
-        );
-    }
-    let rep = fig.render(path).map_err(|e| anyhow!("plot: {e}"))?;
-    for w in rep.problems() {
-        eprintln!("warning: {}: {w}", path.display());
-    }
-    Ok(())
+    )
 }
 
 /// Where a link's weight label goes: half way from `a` to `b` unless that is within 6 % of the

@@ -160,6 +160,36 @@ struct Inbox {
     hellos: BTreeSet<usize>,
 }
 
+impl Inbox {
+    fn new(id: ScenarioId, neighbours: &[usize]) -> Self {
+        Self {
+            id,
+            inputs: Mailbox::new("input", neighbours),
+            exchanges: Mailbox::new("exchange", neighbours),
+            sensing: BTreeMap::new(),
+            sensing_stats: LinkStats::default(),
+            departed: BTreeSet::new(),
+            world_alive: false,
+            stopped: None,
+            started: false,
+            hellos: BTreeSet::new(),
+        }
+    }
+}
+
+/// The agents agent `i` talks with on the mesh: its neighbours and those that listen to it.
+fn mesh_peers(sc: &Scenario, i: usize, neighbours: &[usize]) -> Vec<usize> {
+    let listeners = sc.framework().graph().edges().iter().filter(|e| e.1 == i);
+    let mut peers: Vec<usize> = neighbours
+        .iter()
+        .copied()
+        .chain(listeners.map(|e| e.0))
+        .collect();
+    peers.sort_unstable();
+    peers.dedup();
+    peers
+}
+
 /// An agent process's state between the two sessions.
 struct Node {
     me: usize,
@@ -186,32 +216,10 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
     let live = o.live || o.lossy || matches!(o.mode, Mode::Realtime { .. });
     let agent = Agent::new(sc, o.id, live)?;
     let neighbours = agent.neighbours();
-    let listeners: Vec<usize> = sc
-        .framework()
-        .graph()
-        .edges()
-        .iter()
-        .filter(|&&(_, j)| j == o.id)
-        .map(|&(i, _)| i)
-        .collect();
-    let mut peers: Vec<usize> = neighbours.iter().chain(&listeners).copied().collect();
-    peers.sort_unstable();
-    peers.dedup();
     let keys = Keys::new(&o.endpoints.swarm);
     let world = o.endpoints.open_agent_world()?;
     let id = ScenarioId::of(sc);
-    let mut events = Events::new(Inbox {
-        id: id.clone(),
-        inputs: Mailbox::new("input", &neighbours),
-        exchanges: Mailbox::new("exchange", &neighbours),
-        sensing: BTreeMap::new(),
-        sensing_stats: LinkStats::default(),
-        departed: BTreeSet::new(),
-        world_alive: false,
-        stopped: None,
-        started: false,
-        hellos: BTreeSet::new(),
-    });
+    let mut events = Events::new(Inbox::new(id.clone(), &neighbours));
     events.subscribe(&world, &keys.sensing(o.id), Chan::Sensing)?;
     events.subscribe(&world, &keys.control(), Chan::Control)?;
     events.liveliness(&world, &keys.alive_world())?;
@@ -231,6 +239,7 @@ pub fn run_agent(sc: &Scenario, o: &AgentOptions) -> Result<(), SwarmError> {
             what: "declare this agent's liveliness".into(),
             detail: e.to_string(),
         })?;
+    let peers = mesh_peers(sc, o.id, &neighbours);
     let mesh = o.endpoints.open_mesh(o.id, &peers)?;
     for &j in &neighbours {
         events.subscribe(&mesh, &keys.mesh_of(j), Chan::Mesh)?;
