@@ -114,20 +114,7 @@ pub fn run_world(
     let session = o.endpoints.open_world()?;
     let n = sc.framework().agents();
     let id = ScenarioId::of(sc);
-    let mut events = Events::new(Inbox {
-        id: id.clone(),
-        n,
-        live: o.live,
-        alive: BTreeSet::new(),
-        ever_alive: BTreeSet::new(),
-        ready: BTreeSet::new(),
-        outputs: BTreeMap::new(),
-        out_stats: vec![LinkStats::default(); n],
-        used: vec![0; n],
-        links: Vec::new(),
-        reported: BTreeSet::new(),
-        departed: Vec::new(),
-    });
+    let mut events = Events::new(Inbox::new(id.clone(), n, o.live));
     events.subscribe(&session, &keys.outputs(), Chan::Output)?;
     events.expect(&session, (0..n).map(|i| keys.output(i)))?;
     events.subscribe(&session, &keys.statuses(), Chan::Status)?;
@@ -169,6 +156,25 @@ pub fn run_world(
 }
 
 type StepsOutcome = (Results, Vec<Departure>, f64, u64, u64);
+
+impl Inbox {
+    fn new(id: ScenarioId, n: usize, live: bool) -> Self {
+        Self {
+            id,
+            n,
+            live,
+            alive: BTreeSet::new(),
+            ever_alive: BTreeSet::new(),
+            ready: BTreeSet::new(),
+            outputs: BTreeMap::new(),
+            out_stats: vec![LinkStats::default(); n],
+            used: vec![0; n],
+            links: Vec::new(),
+            reported: BTreeSet::new(),
+            departed: Vec::new(),
+        }
+    }
+}
 
 impl events::Inbox for Inbox {
     fn take(&mut self, ev: Event<'_>) -> Result<(), SwarmError> {
