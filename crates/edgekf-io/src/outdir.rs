@@ -72,7 +72,7 @@ impl std::fmt::Display for StudyId {
 pub struct Hint {
     /// The argument that names the directory (`--out`).
     pub out: &'static str,
-    /// The argument that empties it first (`--force`).
+    /// The argument that replaces its contents (`--force`).
     pub force: &'static str,
 }
 
@@ -299,7 +299,8 @@ fn found(p: &Provenance) -> String {
 }
 
 /// Checks that `dir` may receive the outputs of `study` (see the module docs); with `force`,
-/// empties it first (refused for a directory that holds the current or home directory).
+/// its contents are replaced when the new files are in place ([`Prepared::finish`]; refused
+/// for a directory that holds the current or home directory).
 ///
 /// # Errors
 /// [`OutDirError`], naming what the directory holds.
@@ -362,17 +363,11 @@ pub fn prepare(
             let extra: Vec<String> = list
                 .iter()
                 .filter(|(n, _)| !p.files.contains(n) && !DERIVED.contains(&n.as_str()))
-                .map(|(n, d)| if *d { format!("{n}/") } else { n.clone() })
+                .map(entry_shown)
                 .collect();
             if !extra.is_empty() {
-                return Err(OutDirError::Foreign {
-                    dir: shown,
-                    which: if extra.len() == 1 { "was" } else { "were" },
-                    files: few(&extra),
-                    want: format!("{want} (its provenance.json does not list them)"),
-                    out: hint.out,
-                    force: hint.force,
-                });
+                let want = format!("{want} (its provenance.json does not list them)");
+                return Err(foreign(shown, &extra, want, hint));
             }
             Ok(Prepared {
                 dir: dir.to_path_buf(),
@@ -401,15 +396,27 @@ fn without_provenance(dir: &Path, list: &[(String, bool)], want: &str, hint: Hin
             force: hint.force,
         };
     }
-    let names: Vec<String> = list
-        .iter()
-        .map(|(n, d)| if *d { format!("{n}/") } else { n.clone() })
-        .collect();
+    let names: Vec<String> = list.iter().map(entry_shown).collect();
+    let want = format!("edgekf (there is no provenance.json); this is {want}");
+    foreign(shown, &names, want, hint)
+}
+
+/// A directory entry as the messages show it: a directory with a trailing `/`.
+fn entry_shown((name, is_dir): &(String, bool)) -> String {
+    if *is_dir {
+        format!("{name}/")
+    } else {
+        name.clone()
+    }
+}
+
+/// Files in `dir` that `want` did not write.
+fn foreign(dir: String, names: &[String], want: String, hint: Hint) -> OutDirError {
     OutDirError::Foreign {
-        dir: shown,
+        dir,
         which: if names.len() == 1 { "was" } else { "were" },
-        files: few(&names),
-        want: format!("edgekf (there is no provenance.json); this is {want}"),
+        files: few(names),
+        want,
         out: hint.out,
         force: hint.force,
     }
