@@ -242,6 +242,13 @@ impl Classes {
         self.solo.len() == self.runs
     }
 
+    /// Brings what [`Self::regroup`] reads first into the cache (see `CaEdges::prefetch_means`).
+    #[inline]
+    pub(crate) fn prefetch(&self) {
+        crate::linalg::prefetch(&self.last);
+        crate::linalg::prefetch(&self.of);
+    }
+
     /// `Λ ← F Λ Fᵀ + Q` of the classes' and the own covariances (`groups` the class batch,
     /// `bank` the edge's batch; its means are predicted by the caller).
     pub(crate) fn predict<const DD: usize>(
