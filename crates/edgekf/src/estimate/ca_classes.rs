@@ -242,7 +242,7 @@ impl Classes {
         self.solo.len() == self.runs
     }
 
-    /// Brings what [`Self::regroup`] reads first into the cache (see `CaEdges::prefetch_means`).
+    /// Brings what [`Self::regroup`] reads first into the cache (see `CaEdges::prefetch_edge`).
     #[inline]
     pub(crate) fn prefetch(&self) {
         crate::linalg::prefetch(&self.last);

@@ -926,7 +926,7 @@ impl<const D: usize> Exchange for Garkf<D> {
         self.indicator(s);
         self.consensus(s);
         for e in 0..self.ca.edges.len() {
-            self.ca.prefetch_means(e + 1);
+            self.ca.prefetch_edge(e + 1);
             self.edge_step(e, s);
         }
         self.ca.end_step();

@@ -338,6 +338,16 @@ pub(crate) enum CaBank<const D: usize> {
     Axes(CaBatch<1>),
 }
 
+impl<const D: usize> CaBank<D> {
+    /// The means (the same layout in both forms: component `a` of run `r` at `a · runs + r`).
+    fn mean(&self) -> &[f64] {
+        match self {
+            CaBank::Full(b) => b.mean(),
+            CaBank::Axes(b) => b.mean(),
+        }
+    }
+}
+
 /// The eigenbasis in which every measurement covariance of the model is diagonal.
 #[derive(Debug, Clone)]
 pub(crate) struct AxesBasis<const D: usize> {
@@ -719,16 +729,11 @@ impl<const D: usize> CaEdges<D> {
     /// Brings edge `e`'s means and its classes' bookkeeping into the second-level cache (if `e`
     /// is an edge), for a loop over the edges to call one edge ahead: each edge's means are an
     /// allocation of their own, which the hardware prefetcher does not guess, and the prediction
-    /// that first reads them waited for memory (18 % of the perf samples of Li & Rajan Fig. 13
-    /// dense). With it that study takes 22–24 s instead of 27–29 s, the same bits.
+    /// that first reads them waited for memory (the guide's Speed chapter, 2026-12-08).
     #[inline]
-    pub(crate) fn prefetch_means(&self, e: usize) {
-        match self.banks.get(e) {
-            Some(CaBank::Full(b)) => prefetch(b.mean()),
-            Some(CaBank::Axes(b)) => prefetch(b.mean()),
-            None => {}
-        }
-        if let Some(c) = self.classes.get(e) {
+    pub(crate) fn prefetch_edge(&self, e: usize) {
+        if let (Some(b), Some(c)) = (self.banks.get(e), self.classes.get(e)) {
+            prefetch(b.mean());
             c.prefetch();
         }
     }
@@ -1125,7 +1130,7 @@ impl<const D: usize> Estimator for RkfCa<D> {
     }
     fn step(&mut self, s: &Step<'_>) {
         for e in 0..self.ca.edges.len() {
-            self.ca.prefetch_means(e + 1);
+            self.ca.prefetch_edge(e + 1);
             self.ca.step_direct(e, s);
         }
         self.ca.end_step();
