@@ -76,14 +76,21 @@ def test_ctrl_c_at_random_moments_of_runs_and_saves(small, tmp_path):
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         ))
     seen = {}
-    for p, n in zip(procs, halves):
-        out, err = p.communicate(timeout=600)
-        assert p.returncode == 0, out + err
-        r = json.loads(out.strip().splitlines()[-1])
-        assert r["seen"]["interrupted"] == n, r
-        assert r["worst"] < 2.0, r
-        for key, count in r["seen"].items():
-            seen[key] = seen.get(key, 0) + count
+    try:
+        for p, n in zip(procs, halves):
+            out, err = p.communicate(timeout=600)
+            assert p.returncode == 0, out + err
+            r = json.loads(out.strip().splitlines()[-1])
+            assert r["seen"]["interrupted"] == n, r
+            assert r["worst"] < 2.0, r
+            for key, count in r["seen"].items():
+                seen[key] = seen.get(key, 0) + count
+    finally:
+        # A failed check leaves no interpreter running.
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
     # The signals landed before and after the files were written.
     assert seen["nothing on disk"] > 0 and seen["all on disk"] > 0, seen
 
